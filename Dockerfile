@@ -1,0 +1,29 @@
+# syntax=docker/dockerfile:1
+# One image for the SEGB API and UI (compose runs it twice with different commands).
+
+FROM python:3.11-slim AS build
+ENV PIP_NO_CACHE_DIR=1 PIP_DISABLE_PIP_VERSION_CHECK=1
+WORKDIR /src
+COPY requirements.lock ./
+RUN python -m venv /venv && /venv/bin/pip install --require-hashes -r requirements.lock
+COPY pyproject.toml README.md ./
+COPY backend backend
+COPY ui ui
+RUN /venv/bin/pip install --no-deps .
+
+FROM python:3.11-slim
+RUN useradd --create-home --uid 10001 segb && mkdir /data && chown segb /data
+COPY --from=build /venv /venv
+COPY sparql /app/sparql
+ENV PATH=/venv/bin:$PATH \
+    PYTHONUNBUFFERED=1 \
+    SPARQL_DIR=/app/sparql \
+    DATA_DIR=/data \
+    HOST=0.0.0.0
+WORKDIR /app
+USER segb
+EXPOSE 5000 8080
+VOLUME ["/data"]
+HEALTHCHECK --interval=10s --timeout=3s --start-period=10s --retries=5 \
+  CMD ["python", "-c", "import sys, urllib.request; sys.exit(urllib.request.urlopen('http://127.0.0.1:5000/healthz/ready', timeout=2).status != 200)"]
+CMD ["segb", "serve"]

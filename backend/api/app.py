@@ -1,0 +1,68 @@
+"""Building the API application from settings (and, in tests, an already open store)."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+
+from fastapi import FastAPI
+from fastapi.middleware.cors import CORSMiddleware
+
+from backend import __version__
+from backend.api.errors import install_error_handlers
+from backend.api.routes import auth, events, health, ingest
+from backend.config import Settings
+from backend.services.container import build_services
+from backend.store.base import Store
+from backend.store.factory import open_store
+
+logger = logging.getLogger("segb.api")
+
+DESCRIPTION = """
+The **SEGB server** (Semantic Ethical Glass Box) receives what social robots log — what they perceive,
+decide and say — as RDF, keeps it in a triple store, and serves the audits built on it.
+
+* Robots publish with the PyPI client `semantic-log-generator` (`SEGBPublisher` → `POST /ttl`).
+* Authentication: when `SECRET_KEY` is set, send `Authorization: Bearer <JWT>` (HS256) with roles
+  `logger` (publish), `auditor` (read), `admin` (everything). `GET /auth/mode` tells which mode is on.
+* Errors always have the JSON shape `{"detail", "error", "status"}`.
+"""
+
+ROUTERS = [health.router, auth.router, ingest.router, events.router]
+
+
+def create_app(settings: Settings | None = None, store: Store | None = None) -> FastAPI:
+    """The API app. With `store` given, the app uses it and leaves closing it to the caller."""
+    settings = settings or Settings()
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        active_store = store if store is not None else open_store(settings)
+        app.state.services = build_services(settings, active_store)
+        app.state.store_kind = active_store.kind
+        logger.info("SEGB API ready (store=%s, auth=%s)", active_store.kind, settings.auth_enabled)
+        try:
+            yield
+        finally:
+            if store is None:
+                active_store.close()
+
+    app = FastAPI(
+        title="SEGB server",
+        version=__version__,
+        description=DESCRIPTION,
+        lifespan=lifespan,
+        license_info={"name": "Apache-2.0"},
+    )
+    install_error_handlers(app)
+    if settings.cors_origin_list:
+        app.add_middleware(
+            CORSMiddleware,
+            allow_origins=settings.cors_origin_list,
+            allow_methods=["GET", "POST"],
+            allow_headers=["Authorization", "Content-Type", "Content-Encoding", "X-Request-ID"],
+        )
+    for router in ROUTERS:
+        app.include_router(router)
+    return app

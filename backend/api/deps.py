@@ -1,0 +1,67 @@
+"""FastAPI dependencies: the services, the caller's identity and role checks, size-limited bodies."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Annotated
+
+from fastapi import Depends, Request
+
+from backend.api.security import Principal, authorize, principal_from_header
+from backend.config import Settings
+from backend.services.container import Services
+from backend.services.errors import PayloadTooLarge
+
+
+def get_services(request: Request) -> Services:
+    return request.app.state.services
+
+
+def get_settings(request: Request) -> Settings:
+    return request.app.state.services.settings
+
+
+ServicesDep = Annotated[Services, Depends(get_services)]
+SettingsDep = Annotated[Settings, Depends(get_settings)]
+
+
+def get_principal(request: Request, settings: SettingsDep) -> Principal:
+    principal = principal_from_header(request.headers.get("authorization"), settings.secret_key)
+    request.state.principal = principal
+    return principal
+
+
+PrincipalDep = Annotated[Principal, Depends(get_principal)]
+
+
+def require(*roles: str) -> Callable[[Principal], Principal]:
+    """Dependency that lets the call through when the caller holds one of `roles` (admin holds all)."""
+
+    def check(principal: PrincipalDep) -> Principal:
+        authorize(principal, roles)
+        return principal
+
+    check.__name__ = f"require_{'_or_'.join(roles)}"
+    return check
+
+
+Logger = Annotated[Principal, Depends(require("logger"))]
+Auditor = Annotated[Principal, Depends(require("auditor"))]
+Admin = Annotated[Principal, Depends(require("admin"))]
+
+
+async def read_limited_body(request: Request, settings: SettingsDep) -> bytes:
+    """The raw body, refused with 413 as soon as it passes MAX_BODY_BYTES (before reading it all)."""
+    limit = settings.max_body_bytes
+    declared = request.headers.get("content-length")
+    if declared and declared.isdigit() and int(declared) > limit:
+        raise PayloadTooLarge(f"The request body is over {limit} bytes (MAX_BODY_BYTES).")
+    chunks = bytearray()
+    async for chunk in request.stream():
+        chunks += chunk
+        if len(chunks) > limit:
+            raise PayloadTooLarge(f"The request body is over {limit} bytes (MAX_BODY_BYTES).")
+    return bytes(chunks)
+
+
+LimitedBody = Annotated[bytes, Depends(read_limited_body)]

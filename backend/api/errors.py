@@ -1,0 +1,89 @@
+"""Every error becomes one JSON shape, `{"detail", "error", ...}`, with one status per error class."""
+
+from __future__ import annotations
+
+import logging
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from starlette.exceptions import HTTPException as StarletteHTTPException
+
+from backend.api.security import AuthenticationFailed, PermissionDenied
+from backend.services import errors as service_errors
+from backend.services.export import NotAcceptable
+from backend.store.base import StoreError, StoreRejectedQuery, StoreUnavailable
+
+logger = logging.getLogger("segb.api")
+
+STATUS_BY_ERROR: list[tuple[type[Exception], int]] = [
+    (service_errors.InvalidRdf, 400),
+    (service_errors.InvalidQuery, 400),
+    (StoreRejectedQuery, 400),
+    (AuthenticationFailed, 401),
+    (PermissionDenied, 403),
+    (service_errors.NotFound, 404),
+    (NotAcceptable, 406),
+    (service_errors.PayloadTooLarge, 413),
+    (service_errors.UnsupportedMediaType, 415),
+    (service_errors.EmptyPayload, 422),
+    (service_errors.InvalidPayload, 422),
+    (service_errors.InvalidParameter, 422),
+    (StoreUnavailable, 503),
+    (StoreError, 502),
+]
+
+
+def error_body(status: int, detail: object, code: str, **extra: object) -> dict[str, object]:
+    return {"detail": detail, "error": code, "status": status, **extra}
+
+
+def _service_error(request: Request, error: Exception) -> JSONResponse:
+    status = next(code for kind, code in STATUS_BY_ERROR if isinstance(error, kind))
+    headers = {"WWW-Authenticate": "Bearer"} if status == 401 else None
+    if isinstance(error, service_errors.ServiceError):
+        body = error_body(status, error.message, error.code, **error.details)
+    elif isinstance(error, StoreUnavailable):
+        kind = getattr(request.app.state, "store_kind", "store")
+        body = error_body(status, f"The triple store ({kind}) is unavailable: {error}", "store_unavailable")
+    elif isinstance(error, StoreRejectedQuery):
+        body = error_body(status, f"The store rejected the query: {error}", "invalid_query")
+    elif isinstance(error, StoreError):
+        logger.error("store error on %s %s: %s", request.method, request.url.path, error)
+        body = error_body(status, f"The triple store failed: {error}", "store_error")
+    else:
+        body = error_body(status, str(error), type(error).__name__.lower())
+    return JSONResponse(body, status_code=status, headers=headers)
+
+
+def _validation_error(request: Request, error: RequestValidationError) -> JSONResponse:
+    problems = [
+        {
+            "loc": list(issue.get("loc", ())),
+            "msg": issue.get("msg", ""),
+            "type": issue.get("type", ""),
+        }
+        for issue in error.errors()
+    ]
+    summary = "; ".join(f"{'.'.join(str(part) for part in p['loc'])}: {p['msg']}" for p in problems)
+    return JSONResponse(error_body(422, problems, "invalid_request", message=summary), status_code=422)
+
+
+def _http_error(request: Request, error: StarletteHTTPException) -> JSONResponse:
+    code = {404: "not_found", 405: "method_not_allowed"}.get(error.status_code, "http_error")
+    return JSONResponse(
+        error_body(error.status_code, error.detail, code), status_code=error.status_code, headers=error.headers
+    )
+
+
+def _unexpected_error(request: Request, error: Exception) -> JSONResponse:
+    logger.exception("unhandled error on %s %s", request.method, request.url.path)
+    return JSONResponse(error_body(500, "Internal server error; see the server log.", "internal_error"), 500)
+
+
+def install_error_handlers(app: FastAPI) -> None:
+    for kind, _ in STATUS_BY_ERROR:
+        app.add_exception_handler(kind, _service_error)
+    app.add_exception_handler(RequestValidationError, _validation_error)  # type: ignore[arg-type]
+    app.add_exception_handler(StarletteHTTPException, _http_error)  # type: ignore[arg-type]
+    app.add_exception_handler(Exception, _unexpected_error)

@@ -1,0 +1,89 @@
+"""Publishing robots' logs: POST /ttl (as the PyPI client sends them) and clearing the events graph."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, Request
+from fastapi.concurrency import run_in_threadpool
+from pydantic import BaseModel, Field
+
+from backend.api.deps import Admin, LimitedBody, Logger, ServicesDep
+from backend.services.ingest import IngestResult
+from backend.services.payloads import DeleteAllRequest, IngestRequest, decode_ingest_body
+
+router = APIRouter(tags=["ingest"])
+
+
+class IngestResponse(BaseModel):
+    message: str = Field(examples=["Stored 57 triples (57 new)."])
+    log_id: str = Field(description="Identifier of this post (also in the server log and the ledger).")
+    triples_received: int = Field(description="Triples in the payload.")
+    triples_new: int = Field(description="Triples the store did not have yet; 0 for a pure re-publish.")
+    user: str = Field(description="Authenticated identity the post is recorded under.")
+    claimed_user: str | None = Field(description="The body's `user` field, as claimed by the client.")
+
+
+class DeleteAllResponse(BaseModel):
+    message: str = Field(examples=["Graph cleared."])
+    triples_removed: int
+
+
+_RDF_BODY = {
+    "requestBody": {
+        "required": True,
+        "content": {
+            "application/json": {"schema": IngestRequest.model_json_schema()},
+            "text/turtle": {"schema": {"type": "string"}, "example": "<https://ex.org/a> a <https://ex.org/B> ."},
+            "application/n-triples": {"schema": {"type": "string"}},
+        },
+    }
+}
+
+
+@router.post(
+    "/ttl",
+    status_code=201,
+    response_model=IngestResponse,
+    summary="Publish RDF (Turtle or N-Triples)",
+    description=(
+        "Stores a robot's log. The body is the JSON `SEGBPublisher` sends (`ttl_content`, `user`), or raw "
+        "`text/turtle` / `application/n-triples` (claimed user in `?user=`); `Content-Encoding: gzip` is "
+        "accepted. Re-publishing is idempotent: only triples the store lacks are written, and blank nodes "
+        "are skolemised deterministically. Errors: 400 malformed RDF (with line and column), 413 too large, "
+        "415 unsupported Content-Type, 422 empty or malformed body; nothing is written on any error."
+    ),
+    openapi_extra=_RDF_BODY,
+    responses={400: {"description": "Malformed RDF"}, 413: {"description": "Too large"}, 415: {}, 422: {}},
+)
+async def publish(
+    request: Request, body: LimitedBody, services: ServicesDep, principal: Logger, user: str | None = None
+) -> IngestResponse:
+    def work() -> tuple[IngestResult, str | None]:
+        payload = decode_ingest_body(
+            body,
+            content_type=request.headers.get("content-type"),
+            content_encoding=request.headers.get("content-encoding"),
+            claimed_user=user,
+            max_decompressed_bytes=services.settings.max_decompressed_bytes,
+        )
+        return services.ingest.ingest(payload, actor=principal.username), payload.claimed_user
+
+    result, claimed = await run_in_threadpool(work)
+    return IngestResponse(
+        message=f"Stored {result.triples_received} triples ({result.triples_new} new).",
+        log_id=result.log_id,
+        triples_received=result.triples_received,
+        triples_new=result.triples_new,
+        user=principal.username,
+        claimed_user=claimed,
+    )
+
+
+@router.post(
+    "/ttl/delete_all",
+    response_model=DeleteAllResponse,
+    summary="Clear the events graph",
+    description='Removes every triple of the events graph (admin). The body `{"user": …}` is optional.',
+)
+def delete_all(services: ServicesDep, principal: Admin, body: DeleteAllRequest | None = None) -> DeleteAllResponse:
+    removed = services.ingest.delete_all(actor=principal.username)
+    return DeleteAllResponse(message="Graph cleared." if removed else "No TTLs to delete", triples_removed=removed)

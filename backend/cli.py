@@ -1,0 +1,177 @@
+"""The `segb` command: serve the API and UI, import and export RDF.
+
+Settings come from, highest first: command-line flags, environment variables, a `.env` file, defaults.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+import logging
+import signal
+import sys
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+import uvicorn
+from pydantic import ValidationError
+from tqdm import tqdm
+
+from backend.config import Settings
+from backend.services.errors import ServiceError
+from backend.store.base import StoreError
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = _parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.handler(args)
+    except ValidationError as error:
+        return _fail(f"invalid setting: {_settings_problem(error)}")
+    except (ServiceError, StoreError) as error:
+        return _fail(str(error))
+    except KeyboardInterrupt:
+        return 130
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="segb", description="SEGB server: semantic robot logs, stored and audited.")
+    commands = parser.add_subparsers(dest="command", required=True)
+
+    serve = commands.add_parser("serve", help="run the API (default :5000) and the web UI (default :8080)")
+    _store_options(serve)
+    serve.add_argument("--host", help="interface to listen on (HOST, default 127.0.0.1)")
+    serve.add_argument("--api-port", type=int, help="API port (API_PORT, default 5000)")
+    serve.add_argument("--ui-port", type=int, help="UI port (UI_PORT, default 8080)")
+    serve.add_argument("--backend-url", help="URL the UI uses to reach the API (BACKEND_URL)")
+    serve.add_argument("--only", choices=["api", "ui"], help="run just one of the two servers")
+    serve.set_defaults(handler=_serve)
+
+    load = commands.add_parser("import", help="load Turtle (.ttl) or N-Triples (.nt) files into the store")
+    _store_options(load)
+    load.add_argument("files", nargs="+", type=Path, metavar="FILE")
+    load.set_defaults(handler=_import)
+
+    export = commands.add_parser("export", help="write the events graph out (streamed)")
+    _store_options(export)
+    export.add_argument("--format", choices=["turtle", "ntriples", "nquads", "jsonld"], default="turtle")
+    export.add_argument("--output", "-o", type=Path, help="file to write (default: standard output)")
+    export.set_defaults(handler=_export)
+    return parser
+
+
+def _store_options(command: argparse.ArgumentParser) -> None:
+    command.add_argument("--store", choices=["oxigraph", "memory", "virtuoso", "sparql"], help="STORE")
+    command.add_argument("--data-dir", type=Path, help="DATA_DIR (embedded store location)")
+
+
+def _settings(args: argparse.Namespace, *names: str) -> Settings:
+    overrides: dict[str, Any] = {}
+    for name in ("store", "data_dir", *names):
+        value = getattr(args, name, None)
+        if value is not None:
+            overrides[name] = value
+    return Settings(**overrides)
+
+
+# --- serve -------------------------------------------------------------------------------------------
+
+
+def _serve(args: argparse.Namespace) -> int:
+    settings = _settings(args, "host", "api_port", "ui_port", "backend_url")
+    logging.basicConfig(level=settings.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    from backend.api.app import create_app
+    from ui.app import create_ui_app
+
+    configs = []
+    if args.only in (None, "api"):
+        configs.append(uvicorn.Config(create_app(settings), host=settings.host, port=settings.api_port))
+    if args.only in (None, "ui"):
+        configs.append(uvicorn.Config(create_ui_app(settings), host=settings.host, port=settings.ui_port))
+    if args.only is None:
+        print(f"SEGB API  http://{settings.host}:{settings.api_port}/docs", file=sys.stderr)
+    print(f"SEGB UI   http://{settings.host}:{settings.ui_port}/reports", file=sys.stderr)
+    asyncio.run(_serve_together([_QuietServer(config) for config in configs]))
+    return 0
+
+
+class _QuietServer(uvicorn.Server):
+    """Leaves signals to `_serve_together`, which stops every server on Ctrl-C, not just the last one."""
+
+    @contextlib.contextmanager
+    def capture_signals(self) -> Iterator[None]:
+        yield
+
+
+async def _serve_together(servers: list[uvicorn.Server]) -> None:
+    loop = asyncio.get_running_loop()
+
+    def stop() -> None:
+        for server in servers:
+            server.should_exit = True
+
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        loop.add_signal_handler(signum, stop)
+    await asyncio.gather(*(server.serve() for server in servers))
+
+
+# --- import / export ---------------------------------------------------------------------------------
+
+
+def _import(args: argparse.Namespace) -> int:
+    from backend.services.bulk_import import import_file
+    from backend.store.factory import open_store
+
+    settings = _settings(args)
+    missing = [str(path) for path in args.files if not path.is_file()]
+    if missing:
+        return _fail(f"no such file: {', '.join(missing)}")
+    store = open_store(settings)
+    try:
+        total = sum(path.stat().st_size for path in args.files)
+        with tqdm(total=total, unit="B", unit_scale=True, desc="import", file=sys.stderr) as bar:
+            for path in args.files:
+                result = import_file(store, path, skolem_base=settings.effective_skolem_base, progress=bar.update)
+                bar.write(f"{path}: {result.triples_read} triples read, {result.triples_new} new")
+    finally:
+        store.close()
+    return 0
+
+
+def _export(args: argparse.Namespace) -> int:
+    from backend.services.export import EXPORT_FORMATS, FORMAT_NAMES, stream_graph
+    from backend.store.factory import open_store
+
+    settings = _settings(args)
+    store = open_store(settings)
+    try:
+        chunks = stream_graph(store, EXPORT_FORMATS[FORMAT_NAMES[args.format]])
+        if args.output is None:
+            for chunk in chunks:
+                sys.stdout.buffer.write(chunk)
+            sys.stdout.buffer.flush()
+        else:
+            with args.output.open("wb") as output:
+                for chunk in chunks:
+                    output.write(chunk)
+    finally:
+        store.close()
+    return 0
+
+
+def _fail(message: str) -> int:
+    print(f"segb: error: {message}", file=sys.stderr)
+    return 2
+
+
+def _settings_problem(error: ValidationError) -> str:
+    return "; ".join(
+        f"{'.'.join(str(p) for p in issue['loc']) or 'settings'}: {issue['msg']}" for issue in error.errors()
+    )
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,26 @@
+"""The set of services one running server uses, built once from the settings and the store."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from backend.config import Settings
+from backend.services.ingest import IngestService
+from backend.store.base import Store
+
+
+@dataclass
+class Services:
+    settings: Settings
+    store: Store
+    ingest: IngestService
+
+
+def build_services(settings: Settings, store: Store) -> Services:
+    return Services(
+        settings=settings,
+        store=store,
+        ingest=IngestService(
+            store, skolem_base=settings.effective_skolem_base, max_triples=settings.max_triples_per_post
+        ),
+    )

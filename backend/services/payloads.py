@@ -1,0 +1,118 @@
+"""Turning an ingest request body (JSON as the PyPI client sends it, or raw RDF, maybe gzipped) into RDF bytes."""
+
+from __future__ import annotations
+
+import json
+import zlib
+from dataclasses import dataclass
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pyoxigraph import RdfFormat
+
+from backend.services.errors import EmptyPayload, InvalidPayload, PayloadTooLarge, UnsupportedMediaType
+
+RAW_RDF_TYPES = {
+    "text/turtle": RdfFormat.TURTLE,
+    "application/x-turtle": RdfFormat.TURTLE,
+    "application/n-triples": RdfFormat.N_TRIPLES,
+}
+ACCEPTED_TYPES = "application/json, text/turtle or application/n-triples"
+
+
+class IngestRequest(BaseModel):
+    """The JSON body `SEGBPublisher.publish_turtle` posts."""
+
+    model_config = ConfigDict(
+        json_schema_extra={
+            "examples": [
+                {
+                    "ttl_content": "@prefix prov: <http://www.w3.org/ns/prov#> .\n"
+                    "<https://example.org/robot/ari> a prov:Agent .\n",
+                    "user": "ari",
+                }
+            ]
+        }
+    )
+
+    ttl_content: str = Field(description="A Turtle document: the robot's whole accumulated graph, or a part.")
+    user: str | None = Field(None, description="Name the client claims; kept as 'claimed user'.")
+
+
+class DeleteAllRequest(BaseModel):
+    """The JSON body `SEGBPublisher.delete_all_ttls` posts."""
+
+    user: str | None = Field(None, description="Name the client claims.")
+
+
+@dataclass(frozen=True)
+class RdfPayload:
+    """RDF text to ingest, its syntax, and who the client says it is."""
+
+    data: bytes
+    rdf_format: RdfFormat
+    claimed_user: str | None
+
+
+def media_type(content_type: str | None) -> str:
+    return (content_type or "").split(";", 1)[0].strip().lower()
+
+
+def decode_ingest_body(
+    body: bytes,
+    *,
+    content_type: str | None,
+    content_encoding: str | None,
+    claimed_user: str | None,
+    max_decompressed_bytes: int,
+) -> RdfPayload:
+    """Validate and unwrap a POST /ttl body. Raises the service error that names what is wrong."""
+    kind = media_type(content_type)
+    if kind != "application/json" and kind not in RAW_RDF_TYPES:
+        shown = kind or "no Content-Type"
+        raise UnsupportedMediaType(f"Unsupported Content-Type '{shown}'; send {ACCEPTED_TYPES}.")
+    body = decompress(body, content_encoding, max_decompressed_bytes)
+    if kind == "application/json":
+        request = _parse_json_body(body)
+        if not request.ttl_content.strip():
+            raise EmptyPayload("'ttl_content' is empty; send a Turtle document.")
+        return RdfPayload(request.ttl_content.encode("utf-8"), RdfFormat.TURTLE, request.user)
+    if not body.strip():
+        raise EmptyPayload("The request body is empty; send an RDF document.")
+    return RdfPayload(body, RAW_RDF_TYPES[kind], claimed_user)
+
+
+def decompress(body: bytes, content_encoding: str | None, limit: int) -> bytes:
+    """Undo `Content-Encoding: gzip`, refusing to inflate past `limit` bytes (no zip bombs)."""
+    encoding = (content_encoding or "identity").strip().lower()
+    if encoding == "identity":
+        return body
+    if encoding != "gzip":
+        raise UnsupportedMediaType(f"Unsupported Content-Encoding '{encoding}'; use gzip or none.")
+    output = bytearray()
+    remaining = body
+    while remaining:
+        inflater = zlib.decompressobj(16 + zlib.MAX_WBITS)
+        try:
+            output += inflater.decompress(remaining, limit + 1 - len(output))
+        except zlib.error as error:
+            raise InvalidPayload(f"The gzip body cannot be decompressed: {error}.") from None
+        if len(output) > limit or inflater.unconsumed_tail:
+            raise PayloadTooLarge(f"The decompressed body is over {limit} bytes (MAX_DECOMPRESSED_BYTES).")
+        if not inflater.eof:
+            raise InvalidPayload("The gzip body is truncated.")
+        remaining = inflater.unused_data  # a further gzip member, if any
+    return bytes(output)
+
+
+def _parse_json_body(body: bytes) -> IngestRequest:
+    try:
+        document = json.loads(body)
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise InvalidPayload(f"The body is not valid JSON: {error}.") from None
+    try:
+        return IngestRequest.model_validate(document)
+    except ValidationError as error:
+        problems = "; ".join(
+            f"{'.'.join(str(part) for part in issue['loc']) or 'body'}: {issue['msg']}" for issue in error.errors()
+        )
+        raise InvalidPayload(f"The JSON body is not an ingest request ({problems}).") from None

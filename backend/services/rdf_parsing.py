@@ -1,0 +1,39 @@
+"""Parsing RDF payloads with pyoxigraph, turning parser failures into errors that name the position."""
+
+from __future__ import annotations
+
+from itertools import islice
+
+from pyoxigraph import Quad, RdfFormat, parse
+
+from backend.services.errors import InvalidRdf, PayloadTooLarge
+from backend.services.skolem import might_contain_blank_nodes, skolemize
+
+SYNTAX_NAMES = {RdfFormat.TURTLE: "Turtle", RdfFormat.N_TRIPLES: "N-Triples"}
+
+
+def parse_triples(data: bytes, rdf_format: RdfFormat, *, max_triples: int, skolem_base: str) -> list[Quad]:
+    """All triples of the document, blank nodes skolemised, in the default graph.
+
+    pyoxigraph parses about 25 times faster than rdflib here, which is what keeps re-publishing a
+    client's whole accumulated graph cheap. Relative IRIs are refused (no base IRI is assumed), rather
+    than resolved against some server path as the reference did.
+    """
+    try:
+        quads = list(islice(parse(data, rdf_format), max_triples + 1))
+    except SyntaxError as error:
+        raise invalid_rdf(error, rdf_format) from None
+    if len(quads) > max_triples:
+        raise PayloadTooLarge(f"The payload has more than {max_triples} triples (MAX_TRIPLES_PER_POST).")
+    if might_contain_blank_nodes(data):
+        quads = skolemize(quads, skolem_base)
+    return quads  # type: ignore[return-value]
+
+
+def invalid_rdf(error: SyntaxError, rdf_format: RdfFormat) -> InvalidRdf:
+    """The service error for a pyoxigraph parse failure, keeping its line and column."""
+    message = str(error.msg or error).split(": ", 1)[-1]
+    if "No scheme found" in message:
+        message += " (relative IRIs are not accepted: write absolute IRIs or declare @base)"
+    syntax = SYNTAX_NAMES.get(rdf_format, rdf_format.name)
+    return InvalidRdf(message, syntax=syntax, line=error.lineno, column=error.offset)

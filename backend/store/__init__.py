@@ -1,0 +1,1 @@
+"""Triple store adapters behind one protocol (`base.Store`)."""

@@ -1,0 +1,78 @@
+"""The port between services and triple stores: one small protocol and the result shapes it returns."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Protocol
+
+from pyoxigraph import BlankNode, Literal, NamedNode, Quad, QueryBoolean, QuerySolutions, Triple
+
+Term = NamedNode | BlankNode | Literal
+Bindings = Mapping[str, Term | None]
+QueryResult = QuerySolutions | QueryBoolean | Iterator[Triple]
+
+
+class StoreError(Exception):
+    """A store failed in a way the caller cannot fix by changing its input."""
+
+
+class StoreUnavailable(StoreError):
+    """The store does not answer (down, unreachable, timing out)."""
+
+
+class StoreRejectedQuery(StoreError):
+    """The store refused a query as invalid; the message says why."""
+
+
+@dataclass(frozen=True)
+class SelectResult:
+    """Rows of a SELECT query, in the store's order, with the projected column names."""
+
+    columns: list[str]
+    rows: list[dict[str, Term]] = field(default_factory=list)
+
+
+class Store(Protocol):
+    """What every triple store adapter offers. Events live in one graph, `graph_uri`."""
+
+    kind: str
+    graph_uri: str
+
+    def ping(self) -> None:
+        """Raise StoreUnavailable unless the store answers a trivial query."""
+
+    def insert_new(self, quads: Sequence[Quad]) -> int:
+        """Add the quads (any graph name is ignored) to the events graph; return how many were new."""
+
+    def clear(self) -> int:
+        """Remove every triple of the events graph; return how many there were."""
+
+    def count(self) -> int:
+        """Number of triples in the events graph."""
+
+    def query(self, sparql: str, bindings: Bindings | None = None) -> QueryResult:
+        """Run a read-only query over the events graph (as default graph), with optional bound values."""
+
+    def batches(self, size: int) -> Iterator[list[Quad]]:
+        """Stream the events graph as lists of at most `size` quads (in the default graph)."""
+
+    def close(self) -> None:
+        """Release connections and files."""
+
+
+def select(store: Store, sparql: str, bindings: Bindings | None = None) -> SelectResult:
+    """Run a SELECT and materialise its rows as dicts of terms (unbound columns are left out of a row)."""
+    solutions = store.query(sparql, bindings)
+    if not isinstance(solutions, QuerySolutions):
+        raise TypeError("select() needs a SELECT query")
+    columns = [variable.value for variable in solutions.variables]
+    rows = []
+    for solution in solutions:
+        row = {}
+        for name in columns:
+            value = solution[name]
+            if value is not None:
+                row[name] = value
+        rows.append(row)
+    return SelectResult(columns=columns, rows=rows)

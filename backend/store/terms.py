@@ -1,0 +1,39 @@
+"""Turning pyoxigraph terms into SPARQL text safely: bound values and N-Triples lines."""
+
+from __future__ import annotations
+
+import re
+
+from pyoxigraph import BlankNode
+
+from backend.store.base import Bindings
+
+_TOP_LEVEL_WHERE = re.compile(r"\bWHERE\s*\{", re.IGNORECASE)
+_VARIABLE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+def bind_values(sparql: str, bindings: Bindings | None) -> str:
+    """Put `bindings` into the query as a one-row VALUES block opening its WHERE group.
+
+    Values are written with pyoxigraph's N-Triples serialisation, which escapes them (an invalid IRI
+    cannot even be built), so user input is never spliced into the query text. A binding of None becomes
+    UNDEF: patterns sharing that variable stay unrestricted and `BOUND(?var)` is false, which is how the
+    report queries express optional filters. Every store gets the same text, so results agree.
+    """
+    if not bindings:
+        return sparql
+    names = sorted(bindings)
+    for name in names:
+        if not _VARIABLE_NAME.fullmatch(name):
+            raise ValueError(f"invalid SPARQL variable name {name!r}")
+    cells = []
+    for name in names:
+        term = bindings[name]
+        if isinstance(term, BlankNode):
+            raise ValueError("blank nodes cannot be bound as query parameters")
+        cells.append("UNDEF" if term is None else str(term))
+    block = f"VALUES ({' '.join('?' + name for name in names)}) {{ ({' '.join(cells)}) }}"
+    match = _TOP_LEVEL_WHERE.search(sparql)
+    if match is None:
+        raise ValueError("query has no WHERE group to bind values into")
+    return f"{sparql[: match.end()]}\n  {block}\n{sparql[match.end() :]}"

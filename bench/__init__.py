@@ -1,0 +1,1 @@
+"""Benchmarks: they print measured numbers; they are not timed tests."""

@@ -1,0 +1,238 @@
+"""The emotion-mirror mission controller, instrumented with `semantic-log-generator` as in the SEGB tutorial.
+
+The robot listens to a person, replies (through an LLM or a fixed fallback), and mirrors the facial
+expression it detects. Every event is logged and the whole graph is published right after it:
+
+* a detected expression  -> emotion-recognition activity, observation, Big6 emotion annotation on the person;
+* an utterance           -> shared event, listening activity, InitialMessage from the person;
+* the reply              -> response activity using the LLM, ResponseMessage, the robot's mirrored emotion,
+                            and a robot state snapshot.
+
+ROS is not needed: a driver (see `driver.py`) calls these three handlers with timestamps.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from datetime import datetime, timedelta
+from typing import Any
+
+from rdflib import URIRef
+from semantic_log_generator import (
+    ActivityKind,
+    EmotionScore,
+    ModelUsage,
+    RobotStateSnapshot,
+    SemanticSEGBLogger,
+)
+
+ORO = "http://kb.openrobots.org#"
+INITIAL_MESSAGE = URIRef(ORO + "InitialMessage")
+RESPONSE_MESSAGE = URIRef(ORO + "ResponseMessage")
+FACIAL_EXPRESSION = URIRef("http://www.gsi.upm.es/ontologies/amor/ns#FacialExpressionObservation")
+
+FALLBACK_REPLY = "I am here with you. Tell me more."
+
+Replier = Callable[[str], tuple[str, str]]  # utterance -> (reply text, reply source)
+
+
+def fallback_replier(text: str) -> tuple[str, str]:
+    return FALLBACK_REPLY, "fallback"
+
+
+@dataclass
+class Exchange:
+    """IRIs minted for one utterance and its reply (what tests and the explanation trace look for)."""
+
+    text: str
+    event: URIRef
+    listening: URIRef
+    heard: URIRef
+    response: URIRef | None = None
+    said: URIRef | None = None
+    reply_source: str | None = None
+
+
+@dataclass
+class RobotConfig:
+    robot_id: str = "mirror"
+    robot_name: str = "Emotion Mirror"
+    base_namespace: str = "https://example.org/segb/robots/mirror/v1/"
+    location: str = "living_room"
+    llm_label: str = "llama3.2"
+    llm_version: str = "3.2"
+    llm_provider: str = "Ollama"
+    temperature: float = 0.7
+
+
+@dataclass
+class EmotionMirrorMission:
+    """One robot's mission. `publish` is called with the logger after every event (may be None offline)."""
+
+    logger: SemanticSEGBLogger
+    human: URIRef
+    config: RobotConfig
+    replier: Replier = fallback_replier
+    publish: Callable[[SemanticSEGBLogger], Any] | None = None
+    shared_event_namespace: str | None = None
+    battery: float = 0.95
+    _turn: int = 0
+    _last_expression: str | None = None
+    _last_recognition: URIRef | None = None
+    _last_heard: URIRef | None = None
+    models: dict[str, URIRef] = field(default_factory=dict)
+
+    @classmethod
+    def start(
+        cls,
+        config: RobotConfig,
+        *,
+        human_id: str,
+        human_name: str,
+        human: URIRef | None = None,
+        **options: Any,
+    ) -> EmotionMirrorMission:
+        logger = SemanticSEGBLogger(
+            base_namespace=config.base_namespace,
+            robot_id=config.robot_id,
+            robot_name=config.robot_name,
+            compact_resource_ids=True,
+            namespace_prefix=config.robot_id,
+        )
+        person = human if human is not None else logger.register_human(human_id, first_name=human_name)
+        mission = cls(logger=logger, human=person, config=config, **options)
+        mission.models["face"] = logger.register_ml_model(
+            "face_emotion",
+            label="Emotion Big6 CNN",
+            version="1.0",
+            provider="GSI-UPM",
+            characteristics={"input_size": 48},
+        )
+        mission.models["llm"] = logger.register_ml_model(
+            "llm", label=config.llm_label, version=config.llm_version, provider=config.llm_provider
+        )
+        mission._publish()
+        return mission
+
+    # --- the three handlers the ROS nodes (or the driver) call -------------------------------------------
+
+    def on_face_expression(self, expression: str, at: datetime, confidence: float = 0.9) -> URIRef:
+        """The face listener saw `expression` (a Big6 name such as "happy") on the person."""
+        self._turn += 1
+        log = self.logger
+        recognition = log.log_activity(
+            activity_id=f"recognise_emotion_{self._turn}",
+            activity_kind=ActivityKind.EMOTION_RECOGNITION,
+            label="Recognise facial expression",
+            started_at=at,
+            ended_at=at + timedelta(milliseconds=120),
+            model_usages=[ModelUsage(model=self.models["face"], parameters={"min_face_size": 48})],
+        )
+        log.log_observation(
+            observation_id=f"face_{self._turn}",
+            label=f"Facial expression: {expression}",
+            observation_types=[FACIAL_EXPRESSION],
+            generated_by_activity=recognition,
+        )
+        log.log_emotion_annotation(
+            source_activity=recognition,
+            targets=[self.human],
+            emotions=[EmotionScore(expression, intensity=confidence, confidence=confidence)],
+            annotation_id=f"face_emotion_{self._turn}",
+        )
+        self._last_expression = expression
+        self._last_recognition = recognition
+        self._publish()
+        return recognition
+
+    def on_user_utterance(self, text: str, at: datetime, language: str = "en") -> Exchange:
+        """The intents topic delivered what the person said."""
+        self._turn += 1
+        log = self.logger
+        event = log.get_shared_event_uri(
+            event_kind="human_utterance",
+            observed_at=at,
+            subject=self.human,
+            text=text,
+            modality="speech",
+            shared_event_namespace=self.shared_event_namespace,
+        )
+        listening = log.log_activity(
+            activity_id=f"listen_{self._turn}",
+            activity_kind=ActivityKind.LISTENING,
+            label="Listen to the user",
+            related_shared_events=[event],
+            started_at=at,
+            ended_at=at + timedelta(milliseconds=800),
+        )
+        heard = log.log_message(
+            text,
+            message_id=f"user_{self._turn}",
+            language=language,
+            message_types=[INITIAL_MESSAGE],
+            generated_by_activity=listening,
+            sender=self.human,
+        )
+        self._last_heard = heard
+        self._publish()
+        return Exchange(text=text, event=event, listening=listening, heard=heard)
+
+    def respond(self, exchange: Exchange, at: datetime) -> Exchange:
+        """Reply to the last utterance, mirror the last expression, record the robot's state."""
+        log = self.logger
+        reply, source = self.replier(exchange.text)
+        response = log.log_activity(
+            activity_id=f"respond_{self._turn}",
+            activity_kind=ActivityKind.RESPONSE,
+            label=f"Reply to the user ({source})",
+            related_shared_events=[exchange.event],
+            started_at=at,
+            ended_at=at + timedelta(seconds=1),
+            triggered_by_activity=self._last_recognition or exchange.listening,
+            triggered_by_entity=exchange.heard,
+            model_usages=[
+                ModelUsage(
+                    model=self.models["llm"],
+                    parameters={"temperature": self.config.temperature, "reply_source": source},
+                    software_label="ollama",
+                    software_version="0.5",
+                )
+            ],
+        )
+        said = log.log_message(
+            reply,
+            message_id=f"robot_{self._turn}",
+            language="en",
+            message_types=[RESPONSE_MESSAGE],
+            generated_by_activity=response,
+            previous_message=exchange.heard,
+            sender=log.robot_uri,
+        )
+        if self._last_expression:
+            log.log_emotion_annotation(
+                source_activity=response,
+                targets=[log.robot_uri],
+                emotions=[EmotionScore(self._last_expression, intensity=0.7)],
+                annotation_id=f"mirrored_emotion_{self._turn}",
+            )
+        self.battery = max(0.05, self.battery - 0.004)
+        log.log_robot_state(
+            RobotStateSnapshot(
+                timestamp=at + timedelta(seconds=1),
+                battery_level=self.battery,
+                mission_phase="conversation",
+                autonomy_mode="autonomous",
+                location=self.config.location,
+                custom={"turn": self._turn},
+            ),
+            state_id=f"state_{self._turn}",
+            source_activity=response,
+        )
+        self._publish()
+        exchange.response, exchange.said, exchange.reply_source = response, said, source
+        return exchange
+
+    def _publish(self) -> None:
+        if self.publish is not None:
+            self.publish(self.logger)

@@ -1,0 +1,78 @@
+"""Liveness and readiness probes: exact bodies, 503 when the store is gone, answers during heavy ingest."""
+
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+
+import httpx
+
+from backend.api.app import create_app
+from backend.store.oxigraph import OxigraphStore
+from tests.conftest import make_settings, virtuoso_store
+from tests.support.live_server import LiveServer
+from tests.support.virtuoso import VirtuosoProcess
+
+
+def test_live_and_ready_on_the_embedded_store(tmp_path: Path) -> None:
+    with LiveServer(create_app(make_settings(store="oxigraph", data_dir=tmp_path))) as server:
+        live = httpx.get(f"{server.url}/healthz/live")
+        ready = httpx.get(f"{server.url}/healthz/ready")
+    assert (live.status_code, live.text) == (200, '{"live": true}')
+    assert (ready.status_code, ready.text) == (200, '{"ready": true, "oxigraph": true}')
+
+
+def test_readiness_follows_virtuoso_down_and_back_without_a_restart(tmp_path: Path) -> None:
+    process = VirtuosoProcess(tmp_path)
+    process.start()
+    store = virtuoso_store(process, "http://amor-segb/events")
+    try:
+        with LiveServer(create_app(make_settings(store="virtuoso"), store=store)) as server:
+            url = f"{server.url}/healthz/ready"
+            up = httpx.get(url)
+            assert (up.status_code, up.text) == (200, '{"ready": true, "virtuoso": true}')
+
+            process.stop()
+            down = httpx.get(url)
+            assert down.status_code == 503
+            assert down.json()["ready"] is False and down.json()["virtuoso"] is False
+            refused = httpx.post(f"{server.url}/ttl", json={"ttl_content": "<https://e.org/a> <https://e.org/b> 1 ."})
+            assert refused.status_code == 503
+            assert "virtuoso" in refused.json()["detail"]
+
+            process.start()
+            back = httpx.get(url)
+            assert (back.status_code, back.text) == (200, '{"ready": true, "virtuoso": true}')
+            accepted = httpx.post(f"{server.url}/ttl", json={"ttl_content": "<https://e.org/a> <https://e.org/b> 1 ."})
+            assert accepted.status_code == 201
+    finally:
+        store.close()
+        process.stop()
+
+
+def test_health_keeps_answering_while_a_large_ingest_runs(tmp_path: Path) -> None:
+    payload = "".join(
+        f'<https://ex.org/robot/r{i % 16}/event/{i}> <https://ex.org/says> "utterance number {i}" .\n'
+        for i in range(250_000)
+    ).encode()
+    store = OxigraphStore("http://amor-segb/events", tmp_path / "store")
+    latencies: list[float] = []
+    with LiveServer(create_app(make_settings(store="oxigraph"), store=store)) as server:
+        ingest = threading.Thread(
+            target=lambda: httpx.post(
+                f"{server.url}/ttl", content=payload, headers={"Content-Type": "application/n-triples"}, timeout=120
+            ).raise_for_status()
+        )
+        ingest.start()
+        with httpx.Client(base_url=server.url) as client:
+            while ingest.is_alive():
+                started = time.perf_counter()
+                assert client.get("/healthz/ready").status_code == 200
+                latencies.append(time.perf_counter() - started)
+                time.sleep(0.01)
+        ingest.join()
+    assert store.count() == 250_000
+    assert len(latencies) >= 10, "the ingest ended before health could be probed during it"
+    assert max(latencies) < 0.5, f"health blocked for {max(latencies):.3f} s during ingest"
+    store.close()

@@ -1,0 +1,103 @@
+"""A real Virtuoso (Debian's `virtuoso-t`) on free loopback ports with a throwaway database."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import time
+from pathlib import Path
+
+import httpx
+
+from tests.support.net import free_port
+
+INSTALL_HINT = "install Debian's virtuoso-opensource-7-bin (.ci/run does)"
+
+INI = """\
+[Database]
+DatabaseFile = {dir}/virtuoso.db
+ErrorLogFile = {dir}/virtuoso.log
+LockFile = {dir}/virtuoso.lck
+TransactionFile = {dir}/virtuoso.trx
+xa_persistent_file = {dir}/virtuoso.pxa
+ErrorLogLevel = 7
+FileExtend = 200
+Striping = 0
+TempStorage = TempDatabase
+
+[TempDatabase]
+DatabaseFile = {dir}/virtuoso-temp.db
+TransactionFile = {dir}/virtuoso-temp.trx
+Striping = 0
+
+[Parameters]
+ServerPort = {sql_port}
+NumberOfBuffers = 100000
+MaxDirtyBuffers = 60000
+DirsAllowed = ., {dir}
+CheckpointInterval = 60
+
+[HTTPServer]
+ServerPort = {http_port}
+ServerThreads = 10
+MaxClientConnections = 10
+EnabledDavVSP = 0
+
+[SPARQL]
+ResultSetMaxRows = 10000000
+MaxQueryExecutionTime = 120
+"""
+
+
+class VirtuosoProcess:
+    """Start, stop and restart one Virtuoso server. The `dba` password of a fresh database is `dba`."""
+
+    user = "dba"
+    password = "dba"
+
+    def __init__(self, directory: Path) -> None:
+        binary = shutil.which("virtuoso-t")
+        if binary is None:
+            raise RuntimeError(f"virtuoso-t not found: {INSTALL_HINT}")
+        self._binary = binary
+        self.directory = directory
+        self.http_port = free_port()
+        self.sql_port = free_port()
+        self.base_url = f"http://127.0.0.1:{self.http_port}"
+        self.endpoint = f"{self.base_url}/sparql-auth"
+        (directory / "virtuoso.ini").write_text(
+            INI.format(dir=directory, sql_port=self.sql_port, http_port=self.http_port)
+        )
+        self._process: subprocess.Popen[bytes] | None = None
+
+    def start(self) -> None:
+        self._process = subprocess.Popen(
+            [self._binary, "+configfile", str(self.directory / "virtuoso.ini"), "+foreground"],
+            cwd=self.directory,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline:
+            if self._process.poll() is not None:
+                log = (self.directory / "virtuoso.log").read_text(errors="replace")[-2000:]
+                raise RuntimeError(f"virtuoso-t exited with {self._process.returncode}:\n{log}")
+            try:
+                response = httpx.get(f"{self.base_url}/sparql", params={"query": "ASK {}"}, timeout=1)
+                if response.status_code == 200:
+                    return
+            except httpx.HTTPError:
+                pass
+            time.sleep(0.2)
+        raise RuntimeError("virtuoso-t did not start serving SPARQL within 60 s")
+
+    def stop(self) -> None:
+        if self._process is None:
+            return
+        self._process.terminate()
+        try:
+            self._process.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            self._process.kill()
+            self._process.wait()
+        self._process = None

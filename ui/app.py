@@ -1,0 +1,60 @@
+"""Building the UI application: pages, static files, security headers, a client for the API."""
+
+from __future__ import annotations
+
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+from pathlib import Path
+
+from fastapi import FastAPI, Request
+from fastapi.responses import HTMLResponse
+from fastapi.staticfiles import StaticFiles
+from starlette.exceptions import HTTPException as StarletteHTTPException
+
+from backend.config import Settings
+from ui.api_client import BackendClient, BackendError, BackendUnavailable
+from ui.pages import error_page
+from ui.routes import health, home
+from ui.security import SecurityHeaders
+
+ROUTERS = [home.router, health.router]
+
+
+def create_ui_app(settings: Settings | None = None) -> FastAPI:
+    settings = settings or Settings()
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        app.state.backend = BackendClient(settings.effective_backend_url)
+        try:
+            yield
+        finally:
+            await app.state.backend.aclose()
+
+    app = FastAPI(title="SEGB UI", lifespan=lifespan, docs_url=None, redoc_url=None, openapi_url=None)
+    app.add_middleware(SecurityHeaders)
+    app.mount("/static", StaticFiles(directory=Path(__file__).parent / "static"), name="static")
+    for router in ROUTERS:
+        app.include_router(router)
+    _install_error_pages(app)
+    return app
+
+
+def _install_error_pages(app: FastAPI) -> None:
+    async def backend_down(request: Request, error: Exception) -> HTMLResponse:
+        return error_page(request, 503, "The SEGB API is unavailable", str(error))
+
+    async def backend_refused(request: Request, error: Exception) -> HTMLResponse:
+        assert isinstance(error, BackendError)
+        titles = {401: "Sign-in needed", 403: "Not allowed", 404: "Not found"}
+        status = error.status if error.status in (400, 401, 403, 404, 406, 413, 415, 422) else 502
+        return error_page(request, status, titles.get(error.status, "The SEGB API refused the request"), error.detail)
+
+    async def http_error(request: Request, error: Exception) -> HTMLResponse:
+        assert isinstance(error, StarletteHTTPException)
+        title = "Page not found" if error.status_code == 404 else "Request failed"
+        return error_page(request, error.status_code, title, str(error.detail))
+
+    app.add_exception_handler(BackendUnavailable, backend_down)
+    app.add_exception_handler(BackendError, backend_refused)
+    app.add_exception_handler(StarletteHTTPException, http_error)
