@@ -78,3 +78,74 @@ def memory_api(memory_store: Store) -> Iterator[LiveServer]:
     """The API over real HTTP on a fresh in-memory store (for tests where the store kind is irrelevant)."""
     with LiveServer(create_app(make_settings(), store=memory_store)) as server:
         yield server
+
+
+# --- the web UI and a real browser --------------------------------------------------------------------
+
+ARTIFACTS = Path(__file__).resolve().parents[1] / "test-artifacts"
+CHROMIUM = "/usr/bin/chromium"
+CHROMIUM_ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
+
+
+class UiStack:
+    """The API and the UI, each on its own live HTTP server, the UI talking to the API over HTTP."""
+
+    def __init__(self, api: LiveServer, ui: LiveServer, store: Store) -> None:
+        self.api_url = api.url
+        self.ui_url = ui.url
+        self.store = store
+
+
+def start_ui_stack(store: Store, **settings: object) -> Iterator[UiStack]:
+    from ui.app import create_ui_app
+
+    with LiveServer(create_app(make_settings(**settings), store=store)) as api:
+        ui_settings = make_settings(backend_url=api.url, **settings)
+        with LiveServer(create_ui_app(ui_settings)) as ui:
+            yield UiStack(api, ui, store)
+
+
+@pytest.fixture
+def ui_stack(memory_store: Store) -> Iterator[UiStack]:
+    yield from start_ui_stack(memory_store)
+
+
+@pytest.fixture(scope="session")
+def browser() -> Iterator[object]:
+    import shutil
+
+    from playwright.sync_api import sync_playwright
+
+    if shutil.which("chromium") is None and not Path(CHROMIUM).exists():
+        raise RuntimeError("chromium not found: install Debian's chromium (.ci/run does)")
+    with sync_playwright() as playwright:
+        launched = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        yield launched
+        launched.close()
+
+
+@pytest.fixture
+def page(browser: object, request: pytest.FixtureRequest) -> Iterator[object]:
+    """A fresh page. `page.console_errors` collects console errors and uncaught exceptions; a screenshot
+    of the final state is saved under test-artifacts/ as evidence."""
+    context = browser.new_context(viewport={"width": 1400, "height": 900})  # type: ignore[attr-defined]
+    opened = context.new_page()
+    errors: list[str] = []
+    opened.on("console", lambda message: errors.append(message.text) if message.type == "error" else None)
+    opened.on("pageerror", lambda error: errors.append(str(error)))
+    opened.console_errors = errors
+    yield opened
+    ARTIFACTS.mkdir(exist_ok=True)
+    name = request.node.name.replace("/", "_").replace("[", "-").replace("]", "")
+    try:
+        opened.screenshot(path=str(ARTIFACTS / f"{name}.png"), full_page=True)
+    finally:
+        context.close()

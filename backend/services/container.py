@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from backend.config import Settings
+from backend.services.catalog import Catalog
 from backend.services.ingest import IngestService
 from backend.store.base import Store
 
@@ -13,6 +14,7 @@ from backend.store.base import Store
 class Services:
     settings: Settings
     store: Store
+    catalog: Catalog
     ingest: IngestService
 
 
@@ -20,6 +22,7 @@ def build_services(settings: Settings, store: Store) -> Services:
     return Services(
         settings=settings,
         store=store,
+        catalog=Catalog(settings.sparql_dir),
         ingest=IngestService(
             store, skolem_base=settings.effective_skolem_base, max_triples=settings.max_triples_per_post
         ),

@@ -1,0 +1,150 @@
+"""The query catalog: every `.rq` file under `sparql/`, its title, description and typed parameters.
+
+A query file opens with a header of comment lines, then the query:
+
+    # title: Emotion timeline
+    # description: Every emotion reading with its time, target and robot.
+    # param robot: iri — only activities performed by this robot
+    # param since: dateTime — readings at or after this time
+    # param threshold: decimal = 0.75 — lowest intensity shown
+    PREFIX ...
+    SELECT ... WHERE { ... }
+
+Parameters reach the query as bound values (`backend.store.terms.bind_values`), never as text: a parameter
+that is not given is UNDEF unless it declares a default. Paging (`LIMIT`/`OFFSET`) is appended by
+`paged()`, so catalog queries carry no LIMIT of their own.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from datetime import datetime
+from decimal import Decimal, InvalidOperation
+from pathlib import Path
+from typing import Literal as TypingLiteral
+
+from pyoxigraph import Literal, NamedNode
+
+from backend.services.errors import InvalidParameter, NotFound
+from backend.store.base import Bindings, Term
+
+ParameterType = TypingLiteral["iri", "dateTime", "decimal", "integer", "string"]
+XSD = "http://www.w3.org/2001/XMLSchema#"
+
+_HEADER = re.compile(r"#\s*(title|description):\s*(.*)")
+_PARAM = re.compile(
+    r"#\s*param\s+(?P<name>[A-Za-z_]\w*)\s*:\s*(?P<type>iri|dateTime|decimal|integer|string)"
+    r"(?:\s*=\s*(?P<default>\S+))?\s*(?:[—-]+\s*(?P<help>.*))?"
+)
+
+
+@dataclass(frozen=True)
+class Parameter:
+    name: str
+    type: ParameterType
+    help: str = ""
+    default: str | None = None
+
+
+@dataclass(frozen=True)
+class CatalogQuery:
+    """One `.rq` file. `name` is its path under `sparql/` without the extension, e.g. `reports/participants`."""
+
+    name: str
+    title: str
+    description: str
+    text: str
+    parameters: dict[str, Parameter] = field(default_factory=dict)
+
+    def bindings(self, values: dict[str, str | None]) -> Bindings:
+        """Typed terms for the given values (strings from a query string); 422 naming a bad parameter."""
+        unknown = sorted(set(values) - set(self.parameters))
+        if unknown:
+            raise InvalidParameter(unknown[0], f"not a parameter of {self.name}")
+        bound: dict[str, Term | None] = {}
+        for name, parameter in self.parameters.items():
+            raw = values.get(name)
+            if raw is None or raw == "":
+                raw = parameter.default
+            bound[name] = None if raw is None else to_term(parameter, raw)
+        return bound
+
+
+class _BadValue(ValueError):
+    """A value of the right syntax that breaks a rule; its message is shown as is."""
+
+
+def to_term(parameter: Parameter, raw: str) -> Term:
+    """Parse one parameter value into the RDF term its declared type calls for."""
+    kind = parameter.type
+    try:
+        if kind == "iri":
+            if not raw.startswith(("http://", "https://", "urn:")):
+                raise _BadValue("must be an absolute IRI (http://, https:// or urn:)")
+            return NamedNode(raw)
+        if kind == "dateTime":
+            moment = datetime.fromisoformat(raw.replace("Z", "+00:00"))
+            if moment.tzinfo is None:
+                raise _BadValue("needs a time zone, e.g. 2026-03-10T09:00:00Z")
+            return Literal(moment.isoformat(), datatype=NamedNode(XSD + "dateTime"))
+        if kind == "decimal":
+            number = Decimal(raw)
+            if not number.is_finite():
+                raise _BadValue("must be a finite number")
+            return Literal(str(number), datatype=NamedNode(XSD + "decimal"))
+        if kind == "integer":
+            return Literal(str(int(raw)), datatype=NamedNode(XSD + "integer"))
+        return Literal(raw)
+    except _BadValue as error:
+        raise InvalidParameter(parameter.name, str(error)) from None
+    except (ValueError, InvalidOperation):
+        raise InvalidParameter(parameter.name, f"'{raw}' is not a valid {kind}") from None
+
+
+def paged(text: str, limit: int | None, offset: int | None) -> str:
+    """The query with LIMIT/OFFSET appended (integers only, so nothing user-written enters the text)."""
+    suffix = ""
+    if limit is not None:
+        suffix += f"\nLIMIT {int(limit)}"
+    if offset:
+        suffix += f"\nOFFSET {int(offset)}"
+    return text + suffix
+
+
+class Catalog:
+    """All queries of a `sparql/` directory, loaded once at start-up."""
+
+    def __init__(self, directory: Path) -> None:
+        self.directory = directory
+        self._queries = {query.name: query for query in map(self._load, sorted(directory.rglob("*.rq")))}
+
+    def _load(self, path: Path) -> CatalogQuery:
+        text = path.read_text(encoding="utf-8")
+        name = path.relative_to(self.directory).with_suffix("").as_posix()
+        meta = {"title": name, "description": ""}
+        parameters: dict[str, Parameter] = {}
+        for line in text.splitlines():
+            if not line.startswith("#"):
+                break
+            if match := _PARAM.match(line):
+                parameters[match["name"]] = Parameter(
+                    match["name"], match["type"], (match["help"] or "").strip(), match["default"]  # type: ignore[arg-type]
+                )
+            elif match := _HEADER.match(line):
+                meta[match.group(1)] = match.group(2).strip()
+        return CatalogQuery(name, meta["title"], meta["description"], text, parameters)
+
+    def get(self, name: str) -> CatalogQuery:
+        try:
+            return self._queries[name]
+        except KeyError:
+            raise NotFound(f"No query named '{name}'.") from None
+
+    def under(self, folder: str) -> list[CatalogQuery]:
+        """Queries in one folder of the catalog (e.g. `reports`), in file-name order."""
+        prefix = folder.rstrip("/") + "/"
+        return [query for name, query in self._queries.items() if name.startswith(prefix)]
+
+    def __iter__(self):  # type: ignore[no-untyped-def]
+        return iter(self._queries.values())
