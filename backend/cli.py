@@ -60,6 +60,18 @@ def _parser() -> argparse.ArgumentParser:
     export.add_argument("--format", choices=["turtle", "ntriples", "nquads", "jsonld"], default="turtle")
     export.add_argument("--output", "-o", type=Path, help="file to write (default: standard output)")
     export.set_defaults(handler=_export)
+
+    token = commands.add_parser(
+        "token", help="print an API token (the secret comes from SECRET_KEY or --secret-file, never from argv)"
+    )
+    token.add_argument("--username", required=True)
+    token.add_argument("--role", action="append", required=True, choices=["logger", "auditor", "admin"])
+    token.add_argument("--expires-in", type=int, default=3600, help="lifetime in seconds (60 … 2592000)")
+    token.add_argument("--name", help="display name claim")
+    token.add_argument("--secret-file", type=Path, help="file holding the secret (else SECRET_KEY)")
+    token.add_argument("--allow-weak-secret", action="store_true", help="accept a secret under 32 characters")
+    token.add_argument("--json", action="store_true", help="print token, username, roles, exp as JSON")
+    token.set_defaults(handler=_token)
     return parser
 
 
@@ -159,6 +171,52 @@ def _export(args: argparse.Namespace) -> int:
                     output.write(chunk)
     finally:
         store.close()
+    return 0
+
+
+def _token(args: argparse.Namespace) -> int:
+    import json
+    import os
+    from datetime import UTC, datetime
+
+    from backend.services.tokens import TokenRequestError, mint_token
+
+    if args.secret_file is not None:
+        try:
+            secret = args.secret_file.read_text(encoding="utf-8").strip()
+        except OSError as error:
+            return _fail(f"cannot read the secret file: {error}")
+    else:
+        secret = os.environ.get("SECRET_KEY", "")
+    if not secret:
+        return _fail("no secret: set SECRET_KEY or pass --secret-file")
+    try:
+        minted = mint_token(
+            secret,
+            username=args.username,
+            roles=args.role,
+            expires_in=args.expires_in,
+            name=args.name,
+            allow_weak_secret=args.allow_weak_secret,
+        )
+    except TokenRequestError as error:
+        return _fail(str(error))
+    if args.json:
+        expires = datetime.fromtimestamp(minted.expires_at, UTC).isoformat()
+        print(
+            json.dumps(
+                {
+                    "token": minted.token,
+                    "username": minted.username,
+                    "roles": minted.roles,
+                    "exp": minted.expires_at,
+                    "exp_utc": expires,
+                    "algorithm": "HS256",
+                }
+            )
+        )
+    else:
+        print(minted.token)
     return 0
 
 

@@ -13,11 +13,14 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from backend.config import Settings
 from ui.api_client import BackendClient, BackendError, BackendUnavailable
+from ui.csrf import CsrfCookieMiddleware, CsrfRejected
+from ui.forms import BadForm
 from ui.pages import error_page
-from ui.routes import health, home
+from ui.routes import health, home, session
 from ui.security import SecurityHeaders
+from ui.session import ViewerCache, ViewerMiddleware
 
-ROUTERS = [home.router, health.router]
+ROUTERS = [home.router, health.router, session.router]
 
 
 def create_ui_app(settings: Settings | None = None) -> FastAPI:
@@ -26,12 +29,15 @@ def create_ui_app(settings: Settings | None = None) -> FastAPI:
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         app.state.backend = BackendClient(settings.effective_backend_url)
+        app.state.viewers = ViewerCache()
         try:
             yield
         finally:
             await app.state.backend.aclose()
 
     app = FastAPI(title="SEGB UI", lifespan=lifespan, docs_url=None, redoc_url=None, openapi_url=None)
+    app.add_middleware(CsrfCookieMiddleware)
+    app.add_middleware(ViewerMiddleware)
     app.add_middleware(SecurityHeaders)
     app.mount("/static", StaticFiles(directory=Path(__file__).parent / "static"), name="static")
     for router in ROUTERS:
@@ -55,6 +61,12 @@ def _install_error_pages(app: FastAPI) -> None:
         title = "Page not found" if error.status_code == 404 else "Request failed"
         return error_page(request, error.status_code, title, str(error.detail))
 
+    async def refused_form(request: Request, error: Exception) -> HTMLResponse:
+        status = 403 if isinstance(error, CsrfRejected) else 400
+        return error_page(request, status, "Form refused", str(error))
+
+    app.add_exception_handler(CsrfRejected, refused_form)
+    app.add_exception_handler(BadForm, refused_form)
     app.add_exception_handler(BackendUnavailable, backend_down)
     app.add_exception_handler(BackendError, backend_refused)
     app.add_exception_handler(StarletteHTTPException, http_error)

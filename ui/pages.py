@@ -10,19 +10,24 @@ from fastapi.responses import HTMLResponse
 from fastapi.templating import Jinja2Templates
 
 from ui.api_client import BackendClient
+from ui.csrf import csrf_token
+from ui.session import TOKEN_COOKIE, Viewer
 
 TEMPLATES = Jinja2Templates(directory=str(Path(__file__).parent / "templates"))
 
-NAVIGATION = [
-    ("Reports", "/reports"),
-    ("Graph", "/kg-graph"),
-    ("Query", "/query"),
-    ("Shared context", "/shared-context"),
-    ("Logs", "/logs"),
-    ("Health", "/health"),
-    ("Session", "/session"),
+AUDITOR = ("auditor",)
+ADMIN = ("admin",)
+# (label, path, roles that can use the page; None = public). Pages a viewer cannot use are not shown.
+NAVIGATION: list[tuple[str, str, tuple[str, ...] | None]] = [
+    ("Reports", "/reports", AUDITOR),
+    ("Graph", "/kg-graph", AUDITOR),
+    ("Query", "/query", AUDITOR),
+    ("Shared context", "/shared-context", ADMIN),
+    ("Ledger", "/ledger", AUDITOR),
+    ("Logs", "/logs", ADMIN),
+    ("Health", "/health", None),
+    ("Session", "/session", None),
 ]
-TOKEN_COOKIE = "segb_token"
 
 
 def backend(request: Request) -> BackendClient:
@@ -34,10 +39,21 @@ def token(request: Request) -> str | None:
     return request.cookies.get(TOKEN_COOKIE) or None
 
 
+def viewer(request: Request) -> Viewer:
+    return getattr(request.state, "viewer", None) or Viewer("unknown")
+
+
 def render(
     request: Request, template: str, context: dict[str, Any] | None = None, status_code: int = 200
 ) -> HTMLResponse:
-    page = {"navigation": NAVIGATION, "current_path": request.url.path, **(context or {})}
+    who = viewer(request)
+    page = {
+        "navigation": [(label, path) for label, path, roles in NAVIGATION if who.can(roles)],
+        "current_path": request.url.path,
+        "viewer": who,
+        "csrf_token": csrf_token(request),
+        **(context or {}),
+    }
     return TEMPLATES.TemplateResponse(request, template, page, status_code=status_code)
 
 

@@ -1,11 +1,11 @@
-"""Whether the server checks tokens (public, so a UI can tell before asking for one)."""
+"""Authentication mode and the caller's identity (so a UI can show who it acts as, and with which roles)."""
 
 from __future__ import annotations
 
 from fastapi import APIRouter
-from pydantic import BaseModel
+from pydantic import BaseModel, Field
 
-from backend.api.deps import SettingsDep
+from backend.api.deps import PrincipalDep, SettingsDep
 
 router = APIRouter(tags=["auth"])
 
@@ -14,7 +14,30 @@ class AuthMode(BaseModel):
     auth_enabled: bool
 
 
+class WhoAmI(BaseModel):
+    username: str = Field(examples=["ari"])
+    roles: list[str] = Field(examples=[["logger"]])
+    authenticated: bool = Field(description="False when authentication is off (everyone has every role).")
+    auth_enabled: bool
+
+
 @router.get("/auth/mode", summary="Authentication mode", response_model=AuthMode)
-def auth_mode(settings: SettingsDep) -> AuthMode:
-    """`auth_enabled` is false when SECRET_KEY is empty: every caller then acts with every role."""
+async def auth_mode(settings: SettingsDep) -> AuthMode:
+    """`auth_enabled` is false when SECRET_KEY is empty: every caller then acts with every role. Public."""
     return AuthMode(auth_enabled=settings.auth_enabled)
+
+
+@router.get(
+    "/auth/whoami",
+    summary="The caller's identity",
+    response_model=WhoAmI,
+    responses={401: {"description": "Missing, invalid or expired token"}},
+)
+async def whoami(principal: PrincipalDep, settings: SettingsDep) -> WhoAmI:
+    """Who the bearer token says the caller is. Any valid token; no role needed."""
+    return WhoAmI(
+        username=principal.username,
+        roles=sorted(principal.roles),
+        authenticated=principal.authenticated,
+        auth_enabled=settings.auth_enabled,
+    )

@@ -1,0 +1,51 @@
+"""Session page: paste an API token (kept in an HttpOnly cookie and forwarded to the API), or sign out."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, Request
+from fastapi.responses import HTMLResponse, RedirectResponse, Response
+
+from ui.api_client import BackendError
+from ui.csrf import check_csrf
+from ui.forms import read_form
+from ui.pages import backend, render
+from ui.session import TOKEN_COOKIE
+
+router = APIRouter()
+
+NOTICES = {"saved": "Token saved for this browser session.", "signed-out": "Signed out: the token was removed."}
+
+
+@router.get("/session", response_class=HTMLResponse)
+async def session_page(request: Request, notice: str | None = None) -> HTMLResponse:
+    return render(request, "session.html", {"notice": NOTICES.get(notice or "")})
+
+
+@router.post("/session", response_class=HTMLResponse)
+async def save_token(request: Request) -> Response:
+    form = await read_form(request)
+    check_csrf(request, form)
+    pasted = form.get("token", "").strip().removeprefix("Bearer ").strip()
+    if not pasted:
+        return render(request, "session.html", {"problem": "Paste a token first."}, status_code=400)
+    try:
+        await backend(request).get_json("/auth/whoami", token=pasted)
+    except BackendError as error:
+        problem = f"The API refused this token: {error.detail}"
+        return render(request, "session.html", {"problem": problem}, status_code=400)
+    response = RedirectResponse("/session?notice=saved", status_code=303)
+    response.set_cookie(
+        TOKEN_COOKIE, pasted, httponly=True, samesite="strict", secure=request.url.scheme == "https", path="/"
+    )
+    return response
+
+
+@router.post("/session/logout")
+async def sign_out(request: Request) -> Response:
+    form = await read_form(request)
+    check_csrf(request, form)
+    request.app.state.viewers.forget(request.cookies.get(TOKEN_COOKIE))
+    response = RedirectResponse("/session?notice=signed-out", status_code=303)
+    response.delete_cookie(TOKEN_COOKIE, path="/")
+    return response
+
