@@ -1,8 +1,14 @@
-"""Payloads for the benchmarks, produced by the real PyPI client through the emotion-mirror robot."""
+"""Payloads for the benchmarks, produced by the real PyPI client through the emotion-mirror robot.
+
+One interaction (expression seen, utterance heard, reply given) is three events of about 40, 30 and 80
+triples. A robot publishes after every event; the payloads below are either each event's delta (what the
+reference evaluation sent) or the robot's whole accumulated graph (what the client really sends).
+"""
 
 from __future__ import annotations
 
 from collections.abc import Iterator
+from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
 
 from rdflib import Graph
@@ -13,53 +19,109 @@ T0 = datetime(2026, 3, 10, 9, 0, tzinfo=UTC)
 EXPRESSIONS = ["happy", "sad", "surprised", "angry", "happy", "afraid"]
 
 
+class RecordingGraph(Graph):
+    """An rdflib graph that remembers what was added since the last `take()`: deltas without diffing."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._added: list[tuple] = []
+
+    def add(self, triple):  # type: ignore[no-untyped-def, override]
+        if triple not in self:
+            self._added.append(triple)
+        return super().add(triple)
+
+    def take(self) -> list[tuple]:
+        added, self._added = self._added, []
+        return added
+
+
 def mission(robot: str = "mirror") -> EmotionMirrorMission:
     config = RobotConfig(
         robot_id=robot, robot_name=robot.title(), base_namespace=f"https://example.org/segb/robots/{robot}/v1/"
     )
-    return EmotionMirrorMission.start(config, human_id="maria", human_name="Maria")
+    return EmotionMirrorMission.start(config, human_id=f"{robot}_visitor", human_name="Maria")
+
+
+def recording_mission(robot: str) -> tuple[EmotionMirrorMission, RecordingGraph]:
+    robot_mission = mission(robot)
+    recording = RecordingGraph()
+    for prefix, namespace in robot_mission.logger.graph.namespaces():
+        recording.bind(prefix, namespace, override=True)
+    for triple in robot_mission.logger.graph:
+        recording.add(triple)
+    robot_mission.logger.graph = recording
+    return robot_mission, recording
 
 
 def run_exchange(robot: EmotionMirrorMission, index: int) -> None:
     """One interaction: expression seen, utterance heard, reply given (three events)."""
     at = T0 + timedelta(seconds=20 * index)
     robot.on_face_expression(EXPRESSIONS[index % len(EXPRESSIONS)], at)
-    exchange = robot.on_user_utterance(
-        f"Utterance number {index}: I passed my driving test!", at + timedelta(seconds=1)
-    )
+    exchange = robot.on_user_utterance(f"Utterance {index}: I passed my driving test!", at + timedelta(seconds=1))
     robot.respond(exchange, at + timedelta(seconds=3))
 
 
-def event_deltas(count: int, robot_name: str = "mirror") -> Iterator[str]:
-    """Turtle of what each event adds (the reference evaluation's disjoint per-event payloads)."""
-    robot = mission(robot_name)
-    seen = Graph()
-    published: list[str] = []
+def turtle(triples: list[tuple], like: Graph) -> str:
+    delta = Graph()
+    for prefix, namespace in like.namespaces():
+        delta.bind(prefix, namespace, override=True)
+    for triple in triples:
+        delta.add(triple)
+    return delta.serialize(format="turtle")
 
-    def publish(logger) -> None:  # type: ignore[no-untyped-def]
-        delta = Graph()
-        for prefix, namespace in logger.graph.namespaces():
-            delta.bind(prefix, namespace)
-        for triple in logger.graph:
-            if triple not in seen:
-                delta.add(triple)
-                seen.add(triple)
-        published.append(delta.serialize(format="turtle"))
 
-    robot.publish = publish
+def event_deltas(count: int, robot_name: str = "mirror") -> list[str]:
+    """Turtle of what each event adds, `count` of them (the first also carries robot, human and models)."""
+    robot, recording = recording_mission(robot_name)
+    payloads = [turtle(recording.take(), recording)]
     index = 0
-    while True:
-        while published:
-            yield published.pop(0)
-            count -= 1
-            if count == 0:
-                return
-        run_exchange(robot, index)
+    while len(payloads) < count:
+        at = T0 + timedelta(seconds=20 * index)
+        robot.on_face_expression(EXPRESSIONS[index % len(EXPRESSIONS)], at)
+        payloads.append(turtle(recording.take(), recording))
+        exchange = robot.on_user_utterance(f"Utterance {index}: I passed my test!", at + timedelta(seconds=1))
+        payloads.append(turtle(recording.take(), recording))
+        robot.respond(exchange, at + timedelta(seconds=3))
+        payloads.append(turtle(recording.take(), recording))
         index += 1
+    return payloads[:count]
 
 
-def cumulative_graph(exchanges: int, robot_name: str = "mirror") -> EmotionMirrorMission:
-    robot = mission(robot_name)
-    for index in range(exchanges):
+@dataclass(frozen=True)
+class CumulativePost:
+    interactions: int
+    payload: str
+
+
+def cumulative_posts(interactions: int, robot_name: str = "mirror") -> Iterator[CumulativePost]:
+    """After each interaction, the robot's whole graph as one Turtle document.
+
+    The document is the concatenation of every interaction's Turtle delta (repeated @prefix lines are
+    valid Turtle): the same triples `logger.serialize()` would send, produced without re-serialising the
+    whole graph each time, which would cost the client seconds per post at 100k triples.
+    """
+    robot, recording = recording_mission(robot_name)
+    parts = [turtle(recording.take(), recording)]
+    for index in range(interactions):
         run_exchange(robot, index)
-    return robot
+        parts.append(turtle(recording.take(), recording))
+        yield CumulativePost(index + 1, "".join(parts))
+
+
+def ntriples_of(interactions: int, robot_name: str) -> str:
+    """One robot's whole graph after `interactions` interactions, as N-Triples (for bulk loading)."""
+    robot, _ = recording_mission(robot_name)
+    for index in range(interactions):
+        run_exchange(robot, index)
+    return robot.logger.graph.serialize(format="nt")
+
+
+def replicate(ntriples: str, copies: int, robot_name: str = "mirror") -> Iterator[str]:
+    """`copies` relabelled copies of one robot's N-Triples: robot i gets its own namespace and visitor, and
+    its times shift by i days, so report filters and orderings are not degenerate."""
+    for copy in range(copies):
+        text = ntriples.replace(f"/robots/{robot_name}/", f"/robots/{robot_name}{copy}/")
+        if copy:
+            text = text.replace("2026-03-10T", f"2026-03-{10 + copy % 18:02d}T")
+        yield text

@@ -1,0 +1,215 @@
+"""Turning measured figures into the console table and docs/performance.md."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+
+from bench.measure import Latency
+from bench.runs import Cumulative, ManyRobots, SmallPosts
+
+
+@dataclass
+class Figures:
+    profile: str
+    machine: dict[str, str]
+    small: dict[str, SmallPosts] = field(default_factory=dict)
+    robots: dict[str, ManyRobots] = field(default_factory=dict)
+    cumulative: dict[str, Cumulative] = field(default_factory=dict)
+    health_under_load: Latency | None = None
+    reports: dict[tuple[str, int], dict[str, tuple[Latency, int]]] = field(default_factory=dict)
+    peak_rss_mib: dict[int, float | None] = field(default_factory=dict)
+    wall_seconds: float = 0.0
+
+    def console_table(self) -> str:
+        return "\n".join(line for line in _sections(self) if not line.startswith("<!--"))
+
+
+def _table(header: list[str], rows: list[list[str]]) -> list[str]:
+    return [
+        "| " + " | ".join(header) + " |",
+        "|" + "|".join("---" if i == 0 else "--:" for i in range(len(header))) + "|",
+        *("| " + " | ".join(row) + " |" for row in rows),
+        "",
+    ]
+
+
+def _verdict(ok: bool) -> str:
+    return "met" if ok else "**not met**"
+
+
+def _sections(f: Figures) -> list[str]:
+    lines: list[str] = []
+    if f.small:
+        lines += ["### 1. Small posts (one event's delta, sequential, one client)", ""]
+        lines += _table(
+            ["server", "triples/post", "n", "p50 ms", "p95 ms", "p99 ms", "max ms", "posts/s"],
+            [
+                [
+                    name,
+                    f"{s.triples_per_post:.0f}",
+                    *s.latency.cells()[:1],
+                    *s.latency.cells()[1:],
+                    f"{s.posts_per_second:.0f}",
+                ]
+                for name, s in f.small.items()
+            ],
+        )
+        if "virtuoso" in f.small and "naive baseline" in f.small:
+            ours, naive = f.small["virtuoso"], f.small["naive baseline"]
+            speedup = naive.latency.p50 / ours.latency.p50
+            throughput = ours.posts_per_second / naive.posts_per_second
+            lines += [
+                f"On Virtuoso, against the naive baseline in the same run: p50 {speedup:.2f}x faster, "
+                f"throughput {throughput:.2f}x.",
+                "",
+            ]
+    if f.robots:
+        lines += ["### 2. Many robots (concurrent clients, each posting its own events)", ""]
+        lines += _table(
+            [
+                "server",
+                "posts",
+                "p50 ms",
+                "p95 ms",
+                "p99 ms",
+                "max ms",
+                "posts/s",
+                "triples/s",
+                "errors",
+                "triples sent",
+                "stored",
+            ],
+            [
+                [
+                    name,
+                    *r.latency.cells(),
+                    f"{r.posts_per_second:.0f}",
+                    f"{r.triples_per_second:.0f}",
+                    str(r.errors),
+                    str(r.triples_sent),
+                    str(r.triples_stored),
+                ]
+                for name, r in f.robots.items()
+            ],
+        )
+    if f.cumulative:
+        lines += ["### 3. Cumulative re-publish (the whole graph after every interaction)", ""]
+        for name, run in f.cumulative.items():
+            step = max(1, len(run.points) // 10)
+            picked = run.points[step - 1 :: step]
+            if picked[-1] is not run.last:
+                picked.append(run.last)
+            lines += [f"**{name}**", ""]
+            lines += _table(
+                ["interactions", "payload triples", "payload MB", "new triples", "latency ms"],
+                [
+                    [
+                        str(p.interactions),
+                        str(p.payload_triples),
+                        f"{p.payload_bytes / 1e6:.2f}",
+                        str(p.new_triples),
+                        f"{p.seconds * 1000:.0f}",
+                    ]
+                    for p in picked
+                ],
+            )
+    if any(f.reports.values()):
+        lines += ["### 4. Report queries (`GET /reports/{name}`, default parameters)", ""]
+        rows = []
+        for (store, size), reports in f.reports.items():
+            for name, (latency, count) in reports.items():
+                rows.append([store, f"{size:,}", name, str(count), f"{latency.p50:.1f}", f"{latency.p95:.1f}"])
+        lines += _table(["store", "triples", "report", "rows", "p50 ms", "p95 ms"], rows)
+    if f.health_under_load:
+        h = f.health_under_load
+        lines += ["### 5. Health under load (`/healthz/ready` while workload 3 runs on the embedded store)", ""]
+        lines += _table(["n", "p50 ms", "p95 ms", "p99 ms", "max ms"], [h.cells()])
+    if f.peak_rss_mib:
+        lines += [
+            "Peak RSS of the API process (embedded store) after loading and querying: "
+            + ", ".join(f"{size:,} triples → {rss:.0f} MiB" for size, rss in f.peak_rss_mib.items() if rss)
+            + ".",
+            "",
+        ]
+    lines += ["### Targets", "", *_table(["target", "measured", "verdict"], _targets(f))]
+    return lines
+
+
+def _targets(f: Figures) -> list[list[str]]:
+    rows = []
+    if small := f.small.get("embedded"):
+        rows.append(
+            [
+                "small posts, embedded: p50 ≤ 2 ms, p99 ≤ 10 ms",
+                f"p50 {small.latency.p50:.2f} ms, p99 {small.latency.p99:.2f} ms",
+                _verdict(small.latency.p50 <= 2 and small.latency.p99 <= 10),
+            ]
+        )
+    if "virtuoso" in f.small and "naive baseline" in f.small:
+        ratio = f.small["naive baseline"].latency.p50 / f.small["virtuoso"].latency.p50
+        rows.append(["small posts, Virtuoso: ≥ 5x the naive baseline", f"{ratio:.2f}x (p50)", _verdict(ratio >= 5)])
+    if robots := f.robots.get("embedded"):
+        rows.append(
+            [
+                "16 robots, embedded: ≥ 1,000 posts/s, p99 ≤ 50 ms, 0 errors, 0 lost",
+                f"{robots.posts_per_second:.0f} posts/s, p99 {robots.latency.p99:.1f} ms, {robots.errors} errors, "
+                f"{robots.triples_sent - robots.triples_stored} lost",
+                _verdict(
+                    robots.posts_per_second >= 1000
+                    and robots.latency.p99 <= 50
+                    and robots.errors == 0
+                    and robots.triples_stored == robots.triples_sent
+                ),
+            ]
+        )
+    for name, run in f.cumulative.items():
+        rows.append(
+            [
+                f"cumulative re-publish, {name}: ≤ 1 s per post (at {run.last.interactions} interactions)",
+                f"{run.last.seconds:.2f} s for {run.last.payload_triples:,} triples",
+                _verdict(run.last.seconds <= 1),
+            ]
+        )
+    if f.reports:
+        largest = max(size for _, size in f.reports)
+        for (store, size), reports in f.reports.items():
+            if size == largest and reports:
+                worst50 = max(latency.p50 for latency, _ in reports.values())
+                worst95 = max(latency.p95 for latency, _ in reports.values())
+                rows.append(
+                    [
+                        f"every report at {size:,} triples, {store}: p50 ≤ 50 ms, p95 ≤ 150 ms",
+                        f"worst p50 {worst50:.1f} ms, worst p95 {worst95:.1f} ms",
+                        _verdict(worst50 <= 50 and worst95 <= 150),
+                    ]
+                )
+    if f.health_under_load:
+        rows.append(
+            [
+                "health p99 ≤ 100 ms during heavy ingest",
+                f"p99 {f.health_under_load.p99:.1f} ms",
+                _verdict(f.health_under_load.p99 <= 100),
+            ]
+        )
+    return rows
+
+
+def write_report(f: Figures, path: Path) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    header = [
+        "# Performance",
+        "",
+        f"Measured {datetime.now(UTC):%Y-%m-%d} with `python -m bench --profile {f.profile}` "
+        f"({f.wall_seconds:.0f} s). Server and clients on one machine, over loopback HTTP; each server runs in",
+        "its own process. Payloads come from the emotion-mirror robot (`examples/emotion_mirror`) logging with",
+        "the PyPI client `semantic-log-generator` 1.0.5. The naive baseline (`bench/baseline.py`) is the",
+        "reference backend's ingest: rdflib parse and one `INSERT DATA` per post, blocking inside an async handler.",
+        "",
+        "Machine: " + "; ".join(f"{key} {value}" for key, value in f.machine.items()) + ".",
+        "",
+        "Reproduce: `python -m bench` (quick, under 2 minutes) or `python -m bench --profile full`.",
+        "",
+    ]
+    path.write_text("\n".join(header + _sections(f)) + "\n", encoding="utf-8")

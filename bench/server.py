@@ -1,0 +1,94 @@
+"""Servers under test, each in its own process so clients and server never share an interpreter."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import httpx
+
+from bench.measure import peak_rss_mib
+from tests.support.net import free_port
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+class ServerProcess:
+    """`with ServerProcess([...argv...], env) as server:` runs until the block ends; `server.url`."""
+
+    def __init__(self, argv: list[str], env: dict[str, str], port: int, ready_path: str = "/healthz/ready") -> None:
+        self.url = f"http://127.0.0.1:{port}"
+        self._argv = argv
+        self._env = {**os.environ, "PYTHONPATH": str(ROOT), **env}
+        self._ready_path = ready_path
+        self._process: subprocess.Popen[bytes] | None = None
+
+    def __enter__(self) -> ServerProcess:
+        self._process = subprocess.Popen(
+            [sys.executable, *self._argv], env=self._env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
+        )
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            if self._process.poll() is not None:
+                raise RuntimeError(f"server exited: {self._process.stderr.read().decode()[-2000:]}")  # type: ignore[union-attr]
+            try:
+                if httpx.get(self.url + self._ready_path, timeout=2).status_code == 200:
+                    return self
+            except httpx.HTTPError:
+                pass
+            time.sleep(0.1)
+        raise RuntimeError(f"server at {self.url} not ready after 120 s")
+
+    @property
+    def peak_rss_mib(self) -> float | None:
+        return peak_rss_mib(self._process.pid) if self._process else None
+
+    def __exit__(self, *exc_info: object) -> None:
+        if self._process is not None:
+            self._process.terminate()
+            try:
+                self._process.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                self._process.kill()
+
+
+def segb_server(store: str, data_dir: Path, env: dict[str, str] | None = None) -> ServerProcess:
+    """The SEGB API (`segb serve --only api`) on a free port, with logging kept out of the way."""
+    port = free_port()
+    argv = [
+        "-m",
+        "backend.cli",
+        "serve",
+        "--only",
+        "api",
+        "--store",
+        store,
+        "--data-dir",
+        str(data_dir),
+        "--api-port",
+        str(port),
+    ]
+    return ServerProcess(argv, {"SECRET_KEY": "", "LOGGING_LEVEL": "WARNING", **(env or {})}, port)
+
+
+def baseline_server(endpoint: str, user: str, password: str, graph: str) -> ServerProcess:
+    """The naive reference-style server of bench/baseline.py, pointed at the same Virtuoso."""
+    port = free_port()
+    argv = [
+        "-m",
+        "bench.baseline",
+        "--port",
+        str(port),
+        "--endpoint",
+        endpoint,
+        "--user",
+        user,
+        "--password",
+        password,
+        "--graph",
+        graph,
+    ]
+    return ServerProcess(argv, {}, port, ready_path="/healthz/live")

@@ -1,0 +1,29 @@
+"""The benchmark runs end to end on a tiny profile and writes its report (figures are not asserted)."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_tiny_profile_writes_a_report_with_measured_figures(tmp_path: Path) -> None:
+    output = tmp_path / "performance.md"
+    run = subprocess.run(
+        [sys.executable, "-m", "bench", "--profile", "tiny", "--no-virtuoso", "--output", str(output)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert run.returncode == 0, run.stderr[-3000:]
+    report = output.read_text()
+    for heading in ("### 1. Small posts", "### 2. Many robots", "### 3. Cumulative re-publish", "### Targets"):
+        assert heading in report
+    row = re.search(r"\| embedded \| (\d+) \| (\d+) \| ([\d.]+) \|", report)
+    assert row is not None, report
+    assert int(row.group(2)) == 30 and float(row.group(3)) > 0
+    assert "Machine: cpu" in report
