@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from pathlib import Path
@@ -16,11 +17,13 @@ from ui.api_client import BackendClient, BackendError, BackendUnavailable
 from ui.csrf import CsrfCookieMiddleware, CsrfRejected
 from ui.forms import BadForm
 from ui.pages import error_page
-from ui.routes import health, home, session
+from ui.routes import health, home, reports, session
 from ui.security import SecurityHeaders
 from ui.session import ViewerCache, ViewerMiddleware
 
-ROUTERS = [home.router, health.router, session.router]
+logger = logging.getLogger("segb.ui")
+
+ROUTERS = [home.router, health.router, reports.router, session.router]
 
 
 def create_ui_app(settings: Settings | None = None) -> FastAPI:
@@ -65,6 +68,11 @@ def _install_error_pages(app: FastAPI) -> None:
         status = 403 if isinstance(error, CsrfRejected) else 400
         return error_page(request, status, "Form refused", str(error))
 
+    async def unexpected(request: Request, error: Exception) -> HTMLResponse:
+        logger.exception("unhandled error on %s %s", request.method, request.url.path)
+        return error_page(request, 500, "Something went wrong", "The page failed; the server log has the details.")
+
+    app.add_exception_handler(Exception, unexpected)
     app.add_exception_handler(CsrfRejected, refused_form)
     app.add_exception_handler(BadForm, refused_form)
     app.add_exception_handler(BackendUnavailable, backend_down)

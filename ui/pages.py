@@ -11,9 +11,11 @@ from fastapi.templating import Jinja2Templates
 
 from ui.api_client import BackendClient
 from ui.csrf import csrf_token
+from ui.display import FILTERS
 from ui.session import TOKEN_COOKIE, Viewer
 
 TEMPLATES = Jinja2Templates(directory=str(Path(__file__).parent / "templates"))
+TEMPLATES.env.filters.update(FILTERS)
 
 AUDITOR = ("auditor",)
 ADMIN = ("admin",)

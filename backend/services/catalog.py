@@ -8,11 +8,15 @@ A query file opens with a header of comment lines, then the query:
     # param since: dateTime — readings at or after this time
     # param threshold: decimal = 0.75 — lowest intensity shown
     PREFIX ...
-    SELECT ... WHERE { ... }
+    SELECT ... WHERE { ... FILTER (!BOUND(?param_robot) || ?robot = ?param_robot) ... }
 
-Parameters reach the query as bound values (`backend.store.terms.bind_values`), never as text: a parameter
-that is not given is UNDEF unless it declares a default. Paging (`LIMIT`/`OFFSET`) is appended by
-`paged()`, so catalog queries carry no LIMIT of their own.
+Parameters reach the query as bound values (`backend.store.terms.bind_values`), never as text. Parameter
+`robot` is the variable `?param_robot`, so a filter's value never collides with the column it filters; a
+parameter that is not given is UNDEF (so `!BOUND(?param_x)` switches its filter off) unless it declares a
+default. Paging (`LIMIT`/`OFFSET`) is appended by `paged()`, so catalog queries carry no LIMIT of their own.
+
+A file whose header says `# same-as: reports/emotion-timeline` has no query of its own: it runs that
+query with its own title, description and parameter defaults (a preset, not a copy).
 """
 
 from __future__ import annotations
@@ -32,7 +36,8 @@ from backend.store.base import Bindings, Term
 ParameterType = TypingLiteral["iri", "dateTime", "decimal", "integer", "string"]
 XSD = "http://www.w3.org/2001/XMLSchema#"
 
-_HEADER = re.compile(r"#\s*(title|description):\s*(.*)")
+_HEADER = re.compile(r"#\s*(title|description|same-as):\s*(.*)")
+PARAMETER_VARIABLE_PREFIX = "param_"
 _PARAM = re.compile(
     r"#\s*param\s+(?P<name>[A-Za-z_]\w*)\s*:\s*(?P<type>iri|dateTime|decimal|integer|string)"
     r"(?:\s*=\s*(?P<default>\S+))?\s*(?:[—-]+\s*(?P<help>.*))?"
@@ -67,7 +72,7 @@ class CatalogQuery:
             raw = values.get(name)
             if raw is None or raw == "":
                 raw = parameter.default
-            bound[name] = None if raw is None else to_term(parameter, raw)
+            bound[PARAMETER_VARIABLE_PREFIX + name] = None if raw is None else to_term(parameter, raw)
         return bound
 
 
@@ -112,28 +117,53 @@ def paged(text: str, limit: int | None, offset: int | None) -> str:
     return text + suffix
 
 
+@dataclass(frozen=True)
+class _Header:
+    meta: dict[str, str]
+    parameters: dict[str, Parameter]
+    text: str
+
+
+def _read_header(text: str) -> _Header:
+    meta: dict[str, str] = {}
+    parameters: dict[str, Parameter] = {}
+    for line in text.splitlines():
+        if not line.startswith("#"):
+            break
+        if match := _PARAM.match(line):
+            parameters[match["name"]] = Parameter(
+                match["name"],
+                match["type"],
+                (match["help"] or "").strip(),
+                match["default"],  # type: ignore[arg-type]
+            )
+        elif match := _HEADER.match(line):
+            meta[match.group(1)] = match.group(2).strip()
+    return _Header(meta, parameters, text)
+
+
+def _resolve(name: str, headers: dict[str, _Header]) -> CatalogQuery:
+    """The query of one file; a `same-as` preset takes its base's text and parameters, then its own overrides."""
+    header = headers[name]
+    text, parameters = header.text, header.parameters
+    if base_name := header.meta.get("same-as"):
+        base = headers.get(base_name)
+        if base is None or "same-as" in base.meta:
+            raise ValueError(f"{name}.rq: same-as names '{base_name}', which is not a query of its own")
+        text, parameters = base.text, {**base.parameters, **header.parameters}
+    return CatalogQuery(name, header.meta.get("title", name), header.meta.get("description", ""), text, parameters)
+
+
 class Catalog:
     """All queries of a `sparql/` directory, loaded once at start-up."""
 
     def __init__(self, directory: Path) -> None:
         self.directory = directory
-        self._queries = {query.name: query for query in map(self._load, sorted(directory.rglob("*.rq")))}
-
-    def _load(self, path: Path) -> CatalogQuery:
-        text = path.read_text(encoding="utf-8")
-        name = path.relative_to(self.directory).with_suffix("").as_posix()
-        meta = {"title": name, "description": ""}
-        parameters: dict[str, Parameter] = {}
-        for line in text.splitlines():
-            if not line.startswith("#"):
-                break
-            if match := _PARAM.match(line):
-                parameters[match["name"]] = Parameter(
-                    match["name"], match["type"], (match["help"] or "").strip(), match["default"]  # type: ignore[arg-type]
-                )
-            elif match := _HEADER.match(line):
-                meta[match.group(1)] = match.group(2).strip()
-        return CatalogQuery(name, meta["title"], meta["description"], text, parameters)
+        headers = {
+            path.relative_to(directory).with_suffix("").as_posix(): _read_header(path.read_text(encoding="utf-8"))
+            for path in sorted(directory.rglob("*.rq"))
+        }
+        self._queries = {name: _resolve(name, headers) for name in headers}
 
     def get(self, name: str) -> CatalogQuery:
         try:

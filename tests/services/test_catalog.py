@@ -36,8 +36,8 @@ def test_header_declares_title_description_and_typed_parameters(tmp_path: Path) 
     assert query.parameters["robot"].help == "only this robot"
     assert query.parameters["threshold"].default == "0.75"
     bindings = query.bindings({"robot": "https://ex.org/ari"})
-    assert str(bindings["robot"]) == "<https://ex.org/ari>"
-    assert bindings["threshold"].value == "0.75"  # type: ignore[union-attr]
+    assert str(bindings["param_robot"]) == "<https://ex.org/ari>"
+    assert bindings["param_threshold"].value == "0.75"  # type: ignore[union-attr]
 
 
 def test_bad_and_unknown_parameters_name_the_parameter(tmp_path: Path) -> None:

@@ -48,4 +48,3 @@ async def sign_out(request: Request) -> Response:
     response = RedirectResponse("/session?notice=signed-out", status_code=303)
     response.delete_cookie(TOKEN_COOKIE, path="/")
     return response
-

@@ -1,0 +1,87 @@
+"""Audit reports: the `.rq` files under `sparql/reports/`, run with bound filters, as tables of JSON values."""
+
+from __future__ import annotations
+
+import csv
+import io
+from dataclasses import dataclass
+
+from backend.services.catalog import Catalog, CatalogQuery, paged
+from backend.services.errors import NotFound
+from backend.services.term_values import JsonValue, json_value
+from backend.store.base import Store, select
+
+FOLDER = "reports"
+
+
+@dataclass(frozen=True)
+class ReportTable:
+    """One page of a report. `has_more` tells whether rows follow past `offset + limit`."""
+
+    report: str
+    title: str
+    columns: list[str]
+    rows: list[dict[str, JsonValue]]
+    limit: int
+    offset: int
+    has_more: bool
+
+    def as_json(self) -> dict[str, object]:
+        return {
+            "report": self.report,
+            "title": self.title,
+            "columns": self.columns,
+            "rows": self.rows,
+            "limit": self.limit,
+            "offset": self.offset,
+            "has_more": self.has_more,
+        }
+
+    def as_csv(self) -> str:
+        buffer = io.StringIO()
+        writer = csv.DictWriter(buffer, fieldnames=self.columns, extrasaction="ignore", lineterminator="\r\n")
+        writer.writeheader()
+        for row in self.rows:
+            writer.writerow({column: _csv_cell(row.get(column)) for column in self.columns})
+        return buffer.getvalue()
+
+
+def _csv_cell(value: JsonValue) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return str(value)
+
+
+class ReportService:
+    def __init__(self, catalog: Catalog, store: Store) -> None:
+        self.catalog = catalog
+        self.store = store
+
+    def reports(self) -> list[CatalogQuery]:
+        return self.catalog.under(FOLDER)
+
+    def report(self, name: str) -> CatalogQuery:
+        if "/" in name:
+            raise NotFound(f"No report named '{name}'.")
+        try:
+            return self.catalog.get(f"{FOLDER}/{name}")
+        except NotFound:
+            raise NotFound(f"No report named '{name}'. Reports: {', '.join(self.names())}.") from None
+
+    def names(self) -> list[str]:
+        return [short_name(query) for query in self.reports()]
+
+    def run(self, name: str, filters: dict[str, str | None], limit: int, offset: int = 0) -> ReportTable:
+        """Rows `offset`…`offset+limit` of a report; blocking (store I/O), so call it off the event loop."""
+        query = self.report(name)
+        bindings = query.bindings(filters)
+        # One row past the page tells whether another page exists without counting the whole result.
+        result = select(self.store, paged(query.text, limit + 1, offset), bindings)
+        rows = [{column: json_value(row.get(column)) for column in result.columns} for row in result.rows[:limit]]
+        return ReportTable(name, query.title, result.columns, rows, limit, offset, len(result.rows) > limit)
+
+
+def short_name(query: CatalogQuery) -> str:
+    return query.name.removeprefix(FOLDER + "/")

@@ -1,0 +1,169 @@
+"""Charts as data for server-rendered SVG: geometry is computed here, `_charts.html` only draws it.
+
+No JavaScript and no inline styles (the CSP forbids them): colours travel as SVG presentation attributes.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from datetime import datetime
+
+from ui.display import parse_time, short_iri, when
+
+# Big Six categories get fixed, distinguishable colours; any other category a robot invents gets a stable
+# colour derived from its name.
+EMOTION_COLOURS = {
+    "happiness": "#e6a700",
+    "sadness": "#2f5fd0",
+    "anger": "#c62828",
+    "fear": "#7b3fb5",
+    "disgust": "#2e7d32",
+    "surprise": "#00838f",
+}
+_FALLBACK_COLOURS = ["#8d6e63", "#d81b60", "#546e7a", "#f4511e", "#3949ab", "#00897b"]
+
+
+def colour_for(category: str) -> str:
+    if category in EMOTION_COLOURS:
+        return EMOTION_COLOURS[category]
+    digest = hashlib.sha256(category.encode()).digest()
+    return _FALLBACK_COLOURS[digest[0] % len(_FALLBACK_COLOURS)]
+
+
+@dataclass(frozen=True)
+class Point:
+    x: float
+    y: float
+    title: str
+
+
+@dataclass(frozen=True)
+class Series:
+    name: str
+    colour: str
+    points: list[Point]
+
+    @property
+    def path(self) -> str:
+        return " ".join(f"{'M' if i == 0 else 'L'}{p.x:.1f},{p.y:.1f}" for i, p in enumerate(self.points))
+
+
+@dataclass(frozen=True)
+class Tick:
+    position: float
+    label: str
+
+
+@dataclass
+class LineChart:
+    """Intensity (0 to 1) over time for one participant, one series per emotion category."""
+
+    title: str
+    subject: str
+    kind: str
+    width: int = 640
+    height: int = 220
+    left: int = 44
+    right: int = 16
+    top: int = 14
+    bottom: int = 34
+    series: list[Series] = field(default_factory=list)
+    x_ticks: list[Tick] = field(default_factory=list)
+    y_ticks: list[Tick] = field(default_factory=list)
+
+    @property
+    def plot_right(self) -> int:
+        return self.width - self.right
+
+    @property
+    def plot_bottom(self) -> int:
+        return self.height - self.bottom
+
+
+def emotion_charts(rows: Iterable[Mapping[str, object]]) -> list[LineChart]:
+    """One chart per emotion target (human or robot), in the order targets first appear."""
+    readings: dict[str, list[Mapping[str, object]]] = {}
+    for row in rows:
+        if row.get("time") and isinstance(row.get("intensity"), int | float) and row.get("target"):
+            readings.setdefault(str(row["target"]), []).append(row)
+    return [_emotion_chart(target, target_rows) for target, target_rows in readings.items()]
+
+
+def _emotion_chart(target: str, rows: list[Mapping[str, object]]) -> LineChart:
+    first = rows[0]
+    name = str(first.get("targetName") or short_iri(target))
+    chart = LineChart(title=name, subject=target, kind=str(first.get("targetKind") or "other"))
+    times = [parse_time(str(row["time"])) for row in rows]
+    start, end = min(times), max(times)
+    span = (end - start).total_seconds()
+    plot_width = chart.plot_right - chart.left
+    plot_height = chart.plot_bottom - chart.top
+
+    def x_of(moment: datetime) -> float:
+        if span == 0:
+            return chart.left + plot_width / 2
+        return chart.left + plot_width * (moment - start).total_seconds() / span
+
+    def y_of(value: float) -> float:
+        return chart.plot_bottom - plot_height * max(0.0, min(1.0, value))
+
+    by_category: dict[str, list[Point]] = {}
+    for row, moment in sorted(zip(rows, times, strict=True), key=lambda pair: pair[1]):
+        category = str(row.get("category") or "unknown")
+        intensity = float(row["intensity"])  # type: ignore[arg-type]
+        by_category.setdefault(category, []).append(
+            Point(x_of(moment), y_of(intensity), f"{when(row['time'])} · {category} {intensity:.2f}")
+        )
+    chart.series = [Series(category, colour_for(category), points) for category, points in sorted(by_category.items())]
+    chart.y_ticks = [Tick(y_of(value), f"{value:g}") for value in (0.0, 0.25, 0.5, 0.75, 1.0)]
+    moments = [start] if span == 0 else [start + (end - start) * (i / 3) for i in range(4)]
+    with_date = start.date() != end.date()
+    chart.x_ticks = [Tick(x_of(moment), when(moment.isoformat(), with_date=with_date)) for moment in moments]
+    return chart
+
+
+@dataclass(frozen=True)
+class Bar:
+    label: str
+    value: int
+    y: float
+    width: float
+    detail: str
+
+
+@dataclass
+class BarChart:
+    """Horizontal bars: activities per model."""
+
+    bars: list[Bar]
+    width: int = 640
+    label_width: int = 200
+    bar_height: int = 22
+    gap: int = 8
+
+    @property
+    def height(self) -> int:
+        return max(1, len(self.bars)) * (self.bar_height + self.gap) + self.gap
+
+
+def model_usage_chart(rows: Iterable[Mapping[str, object]]) -> BarChart:
+    activities: dict[str, set[str]] = {}
+    names: dict[str, str] = {}
+    for row in rows:
+        model = str(row.get("model") or "")
+        if not model:
+            continue
+        activities.setdefault(model, set()).add(str(row.get("activity")))
+        version = f" {row['version']}" if row.get("version") else ""
+        names[model] = f"{row.get('modelName') or short_iri(model)}{version}"
+    chart = BarChart(bars=[])
+    top = max((len(used) for used in activities.values()), default=1)
+    room = chart.width - chart.label_width - 60
+    ordered = sorted(activities.items(), key=lambda item: (-len(item[1]), names[item[0]]))
+    chart.bars = [
+        Bar(names[model], len(used), chart.gap + i * (chart.bar_height + chart.gap), room * len(used) / top, model)
+        for i, (model, used) in enumerate(ordered)
+    ]
+    return chart

@@ -1,0 +1,49 @@
+"""How values look on pages: short names for IRIs, readable times. Registered as Jinja filters."""
+
+from __future__ import annotations
+
+from datetime import datetime
+from urllib.parse import urlencode
+
+from backend.services.namespaces import compact
+
+
+def short_iri(value: object) -> str:
+    """`https://…/ari/v1/human_maria` → `human_maria`; known vocabularies as `prefix:name`."""
+    text = str(value or "")
+    if not text.startswith(("http://", "https://", "urn:")):
+        return text
+    compacted = compact(text)
+    if compacted != text:
+        return compacted
+    tail = text.rstrip("/#").replace("#", "/").rsplit("/", 1)[-1]
+    return tail or text
+
+
+def when(value: object, with_date: bool = True) -> str:
+    """ISO time → `2026-03-10 09:00:05` (UTC, as stored)."""
+    if not value:
+        return ""
+    try:
+        moment = parse_time(str(value))
+    except ValueError:
+        return str(value)
+    shown = moment.strftime("%Y-%m-%d %H:%M:%S" if with_date else "%H:%M:%S")
+    return shown + (f".{moment.microsecond // 1000:03d}" if moment.microsecond else "")
+
+
+def parse_time(value: str) -> datetime:
+    return datetime.fromisoformat(value.replace("Z", "+00:00"))
+
+
+def number(value: object, digits: int = 2) -> str:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return "" if value is None else str(value)
+    return f"{value:.{digits}f}".rstrip("0").rstrip(".") if isinstance(value, float) else str(value)
+
+
+def explain_href(iri: object) -> str:
+    return "/explain?" + urlencode({"iri": str(iri)})
+
+
+FILTERS = {"short_iri": short_iri, "when": when, "number": number, "explain_href": explain_href}
