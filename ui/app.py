@@ -8,7 +8,7 @@ from contextlib import asynccontextmanager
 from pathlib import Path
 
 from fastapi import FastAPI, Request
-from fastapi.responses import HTMLResponse
+from fastapi.responses import Response
 from fastapi.staticfiles import StaticFiles
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
@@ -17,13 +17,13 @@ from ui.api_client import BackendClient, BackendError, BackendUnavailable
 from ui.csrf import CsrfCookieMiddleware, CsrfRejected
 from ui.forms import BadForm
 from ui.pages import error_page
-from ui.routes import health, home, reports, session
+from ui.routes import graph, health, home, ledger, reports, session
 from ui.security import SecurityHeaders
 from ui.session import ViewerCache, ViewerMiddleware
 
 logger = logging.getLogger("segb.ui")
 
-ROUTERS = [home.router, health.router, reports.router, session.router]
+ROUTERS = [home.router, health.router, reports.router, graph.router, session.router, ledger.router]
 
 
 def create_ui_app(settings: Settings | None = None) -> FastAPI:
@@ -50,25 +50,25 @@ def create_ui_app(settings: Settings | None = None) -> FastAPI:
 
 
 def _install_error_pages(app: FastAPI) -> None:
-    async def backend_down(request: Request, error: Exception) -> HTMLResponse:
+    async def backend_down(request: Request, error: Exception) -> Response:
         return error_page(request, 503, "The SEGB API is unavailable", str(error))
 
-    async def backend_refused(request: Request, error: Exception) -> HTMLResponse:
+    async def backend_refused(request: Request, error: Exception) -> Response:
         assert isinstance(error, BackendError)
         titles = {401: "Sign-in needed", 403: "Not allowed", 404: "Not found"}
         status = error.status if error.status in (400, 401, 403, 404, 406, 413, 415, 422) else 502
         return error_page(request, status, titles.get(error.status, "The SEGB API refused the request"), error.detail)
 
-    async def http_error(request: Request, error: Exception) -> HTMLResponse:
+    async def http_error(request: Request, error: Exception) -> Response:
         assert isinstance(error, StarletteHTTPException)
         title = "Page not found" if error.status_code == 404 else "Request failed"
         return error_page(request, error.status_code, title, str(error.detail))
 
-    async def refused_form(request: Request, error: Exception) -> HTMLResponse:
+    async def refused_form(request: Request, error: Exception) -> Response:
         status = 403 if isinstance(error, CsrfRejected) else 400
         return error_page(request, status, "Form refused", str(error))
 
-    async def unexpected(request: Request, error: Exception) -> HTMLResponse:
+    async def unexpected(request: Request, error: Exception) -> Response:
         logger.exception("unhandled error on %s %s", request.method, request.url.path)
         return error_page(request, 500, "Something went wrong", "The page failed; the server log has the details.")
 

@@ -6,7 +6,7 @@ from pathlib import Path
 from typing import Any
 
 from fastapi import Request
-from fastapi.responses import HTMLResponse
+from fastapi.responses import HTMLResponse, JSONResponse, Response
 from fastapi.templating import Jinja2Templates
 
 from ui.api_client import BackendClient
@@ -59,5 +59,8 @@ def render(
     return TEMPLATES.TemplateResponse(request, template, page, status_code=status_code)
 
 
-def error_page(request: Request, status_code: int, title: str, message: str) -> HTMLResponse:
+def error_page(request: Request, status_code: int, title: str, message: str) -> Response:
+    """An HTML error page, or `{"detail", "title", "status"}` for the page scripts' JSON requests."""
+    if "application/json" in request.headers.get("accept", ""):
+        return JSONResponse({"detail": message, "title": title, "status": status_code}, status_code=status_code)
     return render(request, "error.html", {"title": title, "message": message, "status": status_code}, status_code)

@@ -11,7 +11,7 @@ from fastapi.middleware.cors import CORSMiddleware
 
 from backend import __version__
 from backend.api.errors import install_error_handlers
-from backend.api.routes import auth, events, health, ingest, reports
+from backend.api.routes import auth, events, graph, health, ingest, ledger, reports, sparql
 from backend.config import Settings
 from backend.services.container import build_services
 from backend.store.base import Store
@@ -29,7 +29,16 @@ decide and say — as RDF, keeps it in a triple store, and serves the audits bui
 * Errors always have the JSON shape `{"detail", "error", "status"}`.
 """
 
-ROUTERS = [health.router, auth.router, ingest.router, events.router, reports.router]
+ROUTERS = [
+    health.router,
+    auth.router,
+    ingest.router,
+    events.router,
+    reports.router,
+    graph.router,
+    ledger.router,
+    sparql.router,
+]
 
 
 def create_app(settings: Settings | None = None, store: Store | None = None) -> FastAPI:
@@ -45,6 +54,7 @@ def create_app(settings: Settings | None = None, store: Store | None = None) -> 
         try:
             yield
         finally:
+            app.state.services.ledger.close()
             if store is None:
                 active_store.close()
 

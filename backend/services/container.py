@@ -6,7 +6,10 @@ from dataclasses import dataclass
 
 from backend.config import Settings
 from backend.services.catalog import Catalog
+from backend.services.explain import ExplainService
+from backend.services.graph import GraphService
 from backend.services.ingest import IngestService
+from backend.services.ledger import LEDGER_FILE, Ledger
 from backend.services.reports import ReportService
 from backend.store.base import Store
 
@@ -18,16 +21,24 @@ class Services:
     catalog: Catalog
     ingest: IngestService
     reports: ReportService
+    graph: GraphService
+    explain: ExplainService
+    ledger: Ledger
 
 
 def build_services(settings: Settings, store: Store) -> Services:
     catalog = Catalog(settings.sparql_dir)
+    graph = GraphService(catalog, store)
     return Services(
         settings=settings,
         store=store,
         catalog=catalog,
         reports=ReportService(catalog, store),
+        graph=graph,
+        explain=ExplainService(graph),
         ingest=IngestService(
             store, skolem_base=settings.effective_skolem_base, max_triples=settings.max_triples_per_post
         ),
+        # A memory store keeps its ledger in memory too: nothing of such a server is meant to be written.
+        ledger=Ledger(None if settings.store == "memory" else settings.data_dir / LEDGER_FILE),
     )

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 PREFIXES: dict[str, str] = {
     "rdf": "http://www.w3.org/1999/02/22-rdf-syntax-ns#",
     "rdfs": "http://www.w3.org/2000/01/rdf-schema#",
@@ -26,6 +28,7 @@ def sparql_prologue() -> str:
     return "".join(f"PREFIX {name}: <{iri}>\n" for name, iri in PREFIXES.items())
 
 
+@lru_cache(maxsize=4096)  # the same few hundred predicates and classes come back in every graph
 def compact(iri: str) -> str:
     """`prefix:local` when the IRI is in a known namespace, else the IRI itself."""
     for name, namespace in PREFIXES.items():

@@ -9,6 +9,7 @@ from typing import Any
 from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse, Response
 
+from ui.choices import participant_choices
 from ui.pages import backend, render, token
 from ui.report_views import OVERVIEW_ORDER, view_of
 
@@ -38,21 +39,6 @@ def _paging(request: Request, default_limit: int) -> tuple[int, int]:
     return max(1, min(whole("limit", default_limit), 10_000)), whole("offset", 0)
 
 
-async def _filter_choices(request: Request) -> dict[str, dict[str, str]]:
-    """Robots and humans to pick from, from the unfiltered participants report."""
-    table = await backend(request).get_json("/reports/participants", token=token(request), params={"limit": 1000})
-    robots: dict[str, str] = {}
-    humans: dict[str, str] = {}
-    for row in table["rows"]:
-        robots[row["robot"]] = row.get("robotName") or row["robot"]
-        humans[row["human"]] = row.get("humanName") or row["human"]
-    return {"robots": _by_name(robots), "humans": _by_name(humans)}
-
-
-def _by_name(choices: dict[str, str]) -> dict[str, str]:
-    return dict(sorted(choices.items(), key=lambda item: item[1].casefold()))
-
-
 def _section(name: str, table: dict[str, Any], described: dict[str, Any]) -> dict[str, Any]:
     return {"name": name, "info": described, "table": table, **view_of(name, table)}
 
@@ -74,7 +60,7 @@ async def reports_overview(request: Request) -> HTMLResponse:
         params = {**_supported(filters, described[name]), "limit": OVERVIEW_ROWS}
         return await client.get_json(f"/reports/{name}", token=user_token, params=params)
 
-    choices, *tables = await asyncio.gather(_filter_choices(request), *(fetch(name) for name in names))
+    choices, *tables = await asyncio.gather(participant_choices(request), *(fetch(name) for name in names))
     sections = [_section(name, table, described[name]) for name, table in zip(names, tables, strict=True)]
     return render(
         request,
@@ -90,7 +76,7 @@ async def one_report(request: Request, name: str) -> HTMLResponse:
     limit, offset = _paging(request, PAGE_ROWS)
     table, choices, listing = await asyncio.gather(
         client.get_json(f"/reports/{name}", token=user_token, params={**filters, "limit": limit, "offset": offset}),
-        _filter_choices(request),
+        participant_choices(request),
         client.get_json("/reports", token=user_token),
     )
     described = next(report for report in listing["reports"] if report["name"] == name)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import uuid
+
 from fastapi import APIRouter, Request
 from fastapi.concurrency import run_in_threadpool
 from pydantic import BaseModel, Field
@@ -24,6 +26,7 @@ class IngestResponse(BaseModel):
 
 class DeleteAllResponse(BaseModel):
     message: str = Field(examples=["Graph cleared."])
+    log_id: str = Field(description="Identifier of this clearing (also in the ledger).")
     triples_removed: int
 
 
@@ -65,7 +68,17 @@ async def publish(
             claimed_user=user,
             max_decompressed_bytes=services.settings.max_decompressed_bytes,
         )
-        return services.ingest.ingest(payload, actor=principal.username), payload.claimed_user
+        result = services.ingest.ingest(payload, actor=principal.username)
+        services.ledger.append(
+            action="ingest",
+            log_id=result.log_id,
+            user=principal.username,
+            claimed_user=payload.claimed_user,
+            payload=payload.data,
+            triples_received=result.triples_received,
+            triples_new=result.triples_new,
+        )
+        return result, payload.claimed_user
 
     result, claimed = await run_in_threadpool(work)
     return IngestResponse(
@@ -85,5 +98,17 @@ async def publish(
     description='Removes every triple of the events graph (admin). The body `{"user": …}` is optional.',
 )
 def delete_all(services: ServicesDep, principal: Admin, body: DeleteAllRequest | None = None) -> DeleteAllResponse:
+    # A plain `def` route runs in the thread pool, so the ledger's SQLite write stays off the event loop.
     removed = services.ingest.delete_all(actor=principal.username)
-    return DeleteAllResponse(message="Graph cleared." if removed else "No TTLs to delete", triples_removed=removed)
+    log_id = str(uuid.uuid4())
+    services.ledger.append(
+        action="delete_all",
+        log_id=log_id,
+        user=principal.username,
+        claimed_user=body.user if body else None,
+        payload=b"",  # no RDF is received: the receipt carries the SHA-256 of the empty payload
+        triples_removed=removed,
+    )
+    return DeleteAllResponse(
+        message="Graph cleared." if removed else "No TTLs to delete", log_id=log_id, triples_removed=removed
+    )

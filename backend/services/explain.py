@@ -1,0 +1,283 @@
+"""Why did the robot do that? The causal chain around one message, activity, emotion or state.
+
+From the seed, the walk goes backwards along what triggered each activity (`segb:triggeredByActivity`,
+`segb:triggeredByEntity`, the activity that generated a triggering message, `prov:wasDerivedFrom`) and
+forwards along what it triggered, then tells each activity as one step of a story in time order: who
+performed it, what was heard or said, which models it used, which emotions it read, which shared event
+and human it was about. Each node is read with `GraphService.resource` (two small bound queries), so an
+explanation costs a few dozen lookups whatever the size of the store.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any
+
+from backend.services.errors import NotFound
+from backend.services.graph import GraphService, local_name
+from backend.services.namespaces import PREFIXES
+
+SEGB, PROV, SCHEMA, ORO = PREFIXES["segb"], PREFIXES["prov"], PREFIXES["schema"], PREFIXES["oro"]
+ONYX, OA, MLS, SOSA = PREFIXES["onyx"], PREFIXES["oa"], PREFIXES["mls"], PREFIXES["sosa"]
+RDFS = PREFIXES["rdfs"]
+
+TRIGGERED_BY_ACTIVITY = SEGB + "triggeredByActivity"
+TRIGGERED_BY_ENTITY = SEGB + "triggeredByEntity"
+INTERMEDIATE = SEGB + "intermediateActivity"
+PRODUCED = SEGB + "producedEntityResult"
+GENERATED = PROV + "generated"
+WAS_GENERATED_BY = PROV + "wasGeneratedBy"
+DERIVED_FROM = PROV + "wasDerivedFrom"
+PERFORMED_BY = SEGB + "wasPerformedBy"
+USED_MODEL = SEGB + "usedMLModel"
+ABOUT = SCHEMA + "about"
+SENDER = SCHEMA + "sender"
+HAS_EMOTION = ONYX + "hasEmotion"
+HAS_TARGET = OA + "hasTarget"
+
+# Activity kinds by type, most specific first (emotion annotations add onyx:EmotionAnalysis to any activity).
+ACTIVITY_KINDS = [
+    (ORO + "ResponseAction", "response"),
+    (ORO + "ListeningEvent", "listening"),
+    (ORO + "DecisionMakingAction", "decision"),
+    (ORO + "DetectedHumanEvent", "human-detection"),
+    (ORO + "EmotionRecognitionEvent", "emotion-recognition"),
+    (MLS + "Run", "ml-run"),
+    (ONYX + "EmotionAnalysis", "emotion-analysis"),
+]
+MAX_ACTIVITIES = 40
+MAX_DEPTH = 6
+
+
+@dataclass
+class Resource:
+    """One node as `GraphService.resource` returns it, with quick access by predicate."""
+
+    body: dict[str, Any]
+
+    @property
+    def iri(self) -> str:
+        return self.body["iri"]
+
+    @property
+    def kind(self) -> str:
+        return self.body["kind"]
+
+    @property
+    def label(self) -> str:
+        return self.body["label"]
+
+    def out(self, predicate: str) -> list[str]:
+        return [str(s["value"]) for s in self.body["outgoing"] if s["predicate"] == predicate]
+
+    def into(self, predicate: str) -> list[str]:
+        return [str(s["value"]) for s in self.body["incoming"] if s["predicate"] == predicate]
+
+    def literal(self, predicate: str) -> Any:
+        return next((s["value"] for s in self.body["outgoing"] if s["predicate"] == predicate), None)
+
+    def types(self) -> set[str]:
+        return set(self.out(PREFIXES["rdf"] + "type"))
+
+
+@dataclass
+class Step:
+    activity: str
+    time: str | None
+    kind: str
+    robot: dict[str, str] | None
+    label: str | None
+    role: str = "context"
+    sentence: str = ""
+    heard: list[dict[str, Any]] = field(default_factory=list)
+    said: list[dict[str, Any]] = field(default_factory=list)
+    models: list[dict[str, Any]] = field(default_factory=list)
+    emotions: list[dict[str, Any]] = field(default_factory=list)
+    events: list[dict[str, Any]] = field(default_factory=list)
+    triggered_by: list[str] = field(default_factory=list)
+
+
+class ExplainService:
+    def __init__(self, graph: GraphService) -> None:
+        self.graph = graph
+
+    def explain(self, iri: str) -> dict[str, Any]:
+        """The story around `iri`; blocking (store I/O)."""
+        reader = _Reader(self.graph)
+        seed = reader.get(iri)
+        if not seed.body["outgoing"] and not seed.body["incoming"]:
+            raise NotFound(f"Nothing is known about <{iri}>.")
+        seed_activities = reader.activities_of(seed)
+        order = self._walk(reader, seed_activities)
+        steps = [reader.step(activity) for activity in order]
+        for step in steps:
+            step.role = "seed" if step.activity in seed_activities else "context"
+        steps.sort(key=lambda step: (step.time or "~", step.activity))
+        seen_seed = False
+        for step in steps:
+            if step.role == "seed":
+                seen_seed = True
+            elif step.role == "context":
+                step.role = "effect" if seen_seed else "cause"
+        return {
+            "iri": iri,
+            "seed": {"iri": seed.iri, "label": seed.label, "kind": seed.kind},
+            "steps": [step.__dict__ for step in steps],
+            "truncated": len(order) >= MAX_ACTIVITIES,
+        }
+
+    def _walk(self, reader: _Reader, seeds: list[str]) -> list[str]:
+        depth = dict.fromkeys(seeds, 0)
+        queue = deque(seeds)
+        while queue and len(depth) < MAX_ACTIVITIES:
+            current = queue.popleft()
+            if depth[current] >= MAX_DEPTH:
+                continue
+            for neighbour in reader.causes(current) + reader.effects(current):
+                if neighbour not in depth and len(depth) < MAX_ACTIVITIES:
+                    depth[neighbour] = depth[current] + 1
+                    queue.append(neighbour)
+        return list(depth)
+
+
+class _Reader:
+    """Resource lookups for one explanation, each node read once."""
+
+    def __init__(self, graph: GraphService) -> None:
+        self.graph = graph
+        self.cache: dict[str, Resource] = {}
+
+    def get(self, iri: str) -> Resource:
+        if iri not in self.cache:
+            self.cache[iri] = Resource(self.graph.resource(iri))
+        return self.cache[iri]
+
+    def activities_of(self, node: Resource) -> list[str]:
+        """The activity a seed stands for: itself, or the activity that produced it."""
+        if node.kind == "activity":
+            return [node.iri]
+        producers = node.out(WAS_GENERATED_BY) + node.into(PRODUCED) + node.into(GENERATED)
+        if not producers:
+            for annotation in node.into(HAS_EMOTION):  # an onyx:Emotion: through its annotation
+                producers += self.get(annotation).into(PRODUCED) + self.get(annotation).into(GENERATED)
+        return list(dict.fromkeys(producers)) or [node.iri]
+
+    def produced(self, activity: str) -> list[str]:
+        node = self.get(activity)
+        return list(dict.fromkeys(node.out(PRODUCED) + node.out(GENERATED) + node.into(WAS_GENERATED_BY)))
+
+    def causes(self, activity: str) -> list[str]:
+        node = self.get(activity)
+        found = node.out(TRIGGERED_BY_ACTIVITY) + node.out(INTERMEDIATE)
+        for entity in node.out(TRIGGERED_BY_ENTITY):
+            found += self.activities_of(self.get(entity))
+        for entity in self.produced(activity):
+            for previous in self.get(entity).out(DERIVED_FROM):
+                found += self.activities_of(self.get(previous))
+        return [iri for iri in dict.fromkeys(found) if iri != activity]
+
+    def effects(self, activity: str) -> list[str]:
+        node = self.get(activity)
+        found = node.into(TRIGGERED_BY_ACTIVITY) + node.into(INTERMEDIATE)
+        for entity in self.produced(activity):
+            produced = self.get(entity)
+            found += produced.into(TRIGGERED_BY_ENTITY)
+            for later in produced.into(DERIVED_FROM):
+                found += self.activities_of(self.get(later))
+        return [iri for iri in dict.fromkeys(found) if iri != activity]
+
+    def name(self, iri: str) -> dict[str, str]:
+        return {"iri": iri, "label": self.get(iri).label}
+
+    def step(self, activity: str) -> Step:
+        node = self.get(activity)
+        types = node.types()
+        kind = next((name for cls, name in ACTIVITY_KINDS if cls in types), "activity")
+        performers = node.out(PERFORMED_BY)
+        step = Step(
+            activity=activity,
+            time=node.body.get("time"),
+            kind=kind,
+            robot=self.name(performers[0]) if performers else None,
+            label=node.literal(RDFS + "label"),
+            triggered_by=self.causes(activity),
+        )
+        for entity in self.produced(activity):
+            self._add_result(step, self.get(entity))
+        for model in node.out(USED_MODEL):
+            described = self.get(model)
+            step.models.append({**self.name(model), "version": described.literal(SCHEMA + "version")})
+        for event in node.out(ABOUT):
+            step.events.append(self._event(event))
+        step.sentence = sentence(step)
+        return step
+
+    def _add_result(self, step: Step, entity: Resource) -> None:
+        if entity.kind == "message":
+            senders = entity.out(SENDER)
+            sender = self.name(senders[0]) if senders else None
+            message = {"iri": entity.iri, "text": entity.literal(SCHEMA + "text"), "sender": sender}
+            is_human = sender is not None and self.get(sender["iri"]).kind == "human"
+            (step.heard if is_human else step.said).append(message)
+        elif entity.kind == "emotion":
+            targets = [self.name(t) for t in entity.out(HAS_TARGET)]
+            for emotion_iri in entity.out(HAS_EMOTION):
+                emotion = self.get(emotion_iri)
+                category = emotion.out(ONYX + "hasEmotionCategory")
+                step.emotions.append({
+                    "iri": emotion_iri,
+                    "category": local_name(category[0]).removeprefix("big6_") if category else None,
+                    "intensity": emotion.literal(ONYX + "hasEmotionIntensity"),
+                    "confidence": emotion.literal(ONYX + "algorithmConfidence"),
+                    "targets": targets,
+                })  # fmt: skip
+
+    def _event(self, event: str) -> dict[str, Any]:
+        node = self.get(event)
+        humans = [self.name(h) for h in node.out(ABOUT) if self.get(h).kind == "human"]
+        modalities = []
+        for observation in node.into(SOSA + "hasFeatureOfInterest"):
+            for procedure in self.get(observation).out(SOSA + "usedProcedure"):
+                modalities.append(self.get(procedure).label)
+        return {"iri": event, "label": node.label, "humans": humans, "modalities": sorted(set(modalities))}
+
+
+def _quote(text: object) -> str:
+    return f"“{text}”"
+
+
+def _reading(emotion: dict[str, Any]) -> str:
+    on = f" on {', '.join(target['label'] for target in emotion['targets'])}" if emotion["targets"] else ""
+    return f"{emotion['category']} {emotion['intensity']}{on}"
+
+
+def sentence(step: Step) -> str:
+    """One line of the story, e.g. `Maria said “I passed” (heard by ARI via speech)`."""
+    robot = step.robot["label"] if step.robot else "Someone"
+    modalities = sorted({m for event in step.events for m in event["modalities"]})
+    via = f" via {', '.join(modalities)}" if modalities else ""
+    models = ", ".join(f"{m['label']} {m['version']}".strip() if m.get("version") else m["label"] for m in step.models)
+    using = f" with {models}" if models else ""
+    parts: list[str] = []
+    for message in step.heard:
+        who = message["sender"]["label"] if message["sender"] else "A human"
+        parts.append(f"{who} said {_quote(message['text'])} (heard by {robot}{via})")
+    if step.emotions:
+        readings = "; ".join(
+            f"{e['category']} {e['intensity']}"
+            + (f" on {', '.join(t['label'] for t in e['targets'])}" if e["targets"] else "")
+            for e in step.emotions
+        )
+        parts.append(f"{robot} analysed emotion{using}: {readings}")
+    elif step.kind == "decision":
+        parts.append(f"{robot} decided {step.label or 'what to do'}{using}")
+    for message in step.said:
+        parts.append(f"{robot} said {_quote(message['text'])}" + (using if not step.emotions else ""))
+    if not parts:
+        humans = [h["label"] for event in step.events for h in event["humans"]]
+        if step.kind == "human-detection" and humans:
+            parts.append(f"{robot} detected {', '.join(humans)}{via}")
+        else:
+            parts.append(f"{robot}: {step.label or step.kind}{using}")
+    return " · ".join(parts)

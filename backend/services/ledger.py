@@ -1,0 +1,218 @@
+"""The ingest ledger: one receipt per accepted post or graph clearing, hash-chained in a SQLite file.
+
+Each receipt's hash covers its fields and the previous receipt's hash, so editing or deleting a stored
+receipt breaks the chain at that point and `verify` names it. Truncating the newest receipts, or
+rewriting every receipt from some point on, cannot be detected from the file alone: an auditor who
+wants that keeps a copy of the newest `receipt_hash` elsewhere and compares it later.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import sqlite3
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import asdict, dataclass, fields, replace
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Literal
+
+LEDGER_FILE = "ledger.sqlite3"
+GENESIS_HASH = "0" * 64
+Action = Literal["ingest", "delete_all"]
+BrokenReason = Literal["hash mismatch", "previous hash does not match", "sequence gap"]
+
+SCHEMA = """
+CREATE TABLE IF NOT EXISTS receipts (
+    sequence          INTEGER PRIMARY KEY,
+    log_id            TEXT    NOT NULL,
+    action            TEXT    NOT NULL,
+    user              TEXT    NOT NULL,
+    claimed_user      TEXT,
+    recorded_at       TEXT    NOT NULL,
+    payload_sha256    TEXT    NOT NULL,
+    triples_received  INTEGER NOT NULL,
+    triples_new       INTEGER NOT NULL,
+    triples_removed   INTEGER NOT NULL,
+    previous_hash     TEXT    NOT NULL,
+    receipt_hash      TEXT    NOT NULL
+)
+"""
+
+
+@dataclass(frozen=True)
+class Receipt:
+    """What one accepted post (or clearing) did, and where it sits in the chain."""
+
+    sequence: int
+    log_id: str
+    action: str
+    user: str
+    claimed_user: str | None
+    recorded_at: str
+    payload_sha256: str
+    triples_received: int
+    triples_new: int
+    triples_removed: int
+    previous_hash: str
+    receipt_hash: str
+
+    def computed_hash(self) -> str:
+        """SHA-256 of the canonical JSON of every other field, previous hash included."""
+        covered = asdict(self)
+        del covered["receipt_hash"]
+        return receipt_hash(covered)
+
+
+# Columns in Receipt field order, so a row is `Receipt(*row)` and a receipt is inserted field by field.
+COLUMNS = ", ".join(field.name for field in fields(Receipt))
+PLACEHOLDERS = ", ".join("?" for _ in fields(Receipt))
+
+
+def receipt_hash(covered: dict[str, object]) -> str:
+    # Sorted keys and no spaces: the same receipt always hashes the same, whoever recomputes it.
+    canonical = json.dumps(covered, sort_keys=True, separators=(",", ":"), ensure_ascii=False)
+    return hashlib.sha256(canonical.encode("utf-8")).hexdigest()
+
+
+@dataclass(frozen=True)
+class BrokenLink:
+    """The first receipt at which the chain fails, and why."""
+
+    sequence: int
+    log_id: str
+    reason: BrokenReason
+
+
+@dataclass(frozen=True)
+class Verification:
+    receipts: int
+    first_broken: BrokenLink | None
+
+    @property
+    def valid(self) -> bool:
+        return self.first_broken is None
+
+
+class Ledger:
+    """Append-only receipts in SQLite: a file (durable, survives restarts) or, with `path=None`, memory.
+
+    All work is blocking; callers in async code run it in a worker thread. One connection serves every
+    call, guarded by a lock, so appends are serialised and concurrent posts extend one chain.
+    """
+
+    def __init__(self, path: Path | None) -> None:
+        self.path = path
+        if path is not None:
+            path.parent.mkdir(parents=True, exist_ok=True)
+        # Autocommit mode: transactions are opened explicitly with BEGIN IMMEDIATE where they matter.
+        self._connection = sqlite3.connect(
+            ":memory:" if path is None else str(path), isolation_level=None, check_same_thread=False, timeout=10
+        )
+        self._lock = threading.Lock()
+        with self._lock:
+            if path is not None:
+                # WAL with FULL sync: a receipt whose post was answered is on disk, even after a power cut.
+                self._connection.execute("PRAGMA journal_mode=WAL")
+                self._connection.execute("PRAGMA synchronous=FULL")
+            self._connection.execute(SCHEMA)
+
+    def append(
+        self,
+        *,
+        action: Action,
+        log_id: str,
+        user: str,
+        claimed_user: str | None,
+        payload: bytes,
+        triples_received: int = 0,
+        triples_new: int = 0,
+        triples_removed: int = 0,
+    ) -> Receipt:
+        """Record one accepted post. `payload` is the RDF as received (after gzip decoding)."""
+        payload_sha256 = hashlib.sha256(payload).hexdigest()
+        with self._lock, self._transaction() as connection:
+            last = connection.execute(
+                "SELECT sequence, receipt_hash FROM receipts ORDER BY sequence DESC LIMIT 1"
+            ).fetchone()
+            sequence, previous = (last[0] + 1, last[1]) if last else (1, GENESIS_HASH)
+            unsigned = Receipt(
+                sequence=sequence,
+                log_id=log_id,
+                action=action,
+                user=user,
+                claimed_user=claimed_user,
+                recorded_at=_utc_now(),
+                payload_sha256=payload_sha256,
+                triples_received=triples_received,
+                triples_new=triples_new,
+                triples_removed=triples_removed,
+                previous_hash=previous,
+                receipt_hash="",
+            )
+            receipt = replace(unsigned, receipt_hash=unsigned.computed_hash())
+            connection.execute(
+                f"INSERT INTO receipts ({COLUMNS}) VALUES ({PLACEHOLDERS})", tuple(asdict(receipt).values())
+            )
+        return receipt
+
+    def page(self, limit: int, offset: int) -> tuple[list[Receipt], int]:
+        """Receipts newest first, and how many there are in all."""
+        with self._lock:
+            total = self._connection.execute("SELECT COUNT(*) FROM receipts").fetchone()[0]
+            rows = self._connection.execute(
+                f"SELECT {COLUMNS} FROM receipts ORDER BY sequence DESC LIMIT ? OFFSET ?", (limit, offset)
+            ).fetchall()
+        return [Receipt(*row) for row in rows], total
+
+    def verify(self) -> Verification:
+        """Recompute every hash and link, oldest first; report the first receipt where the chain fails.
+
+        Runs under the lock (appends wait), so it checks one consistent state of the ledger.
+        """
+        count, broken = 0, None
+        expected_sequence, previous = 1, GENESIS_HASH
+        with self._lock:
+            for row in self._connection.execute(f"SELECT {COLUMNS} FROM receipts ORDER BY sequence"):
+                count += 1
+                if broken is not None:
+                    continue
+                receipt = Receipt(*row)
+                reason = _fault(receipt, expected_sequence, previous)
+                if reason is not None:
+                    broken = BrokenLink(receipt.sequence, receipt.log_id, reason)
+                expected_sequence, previous = receipt.sequence + 1, receipt.receipt_hash
+        return Verification(count, broken)
+
+    def close(self) -> None:
+        with self._lock:
+            self._connection.close()
+
+    @contextmanager
+    def _transaction(self) -> Iterator[sqlite3.Connection]:
+        # IMMEDIATE takes the write lock up front, so even another process appending cannot fork the chain.
+        self._connection.execute("BEGIN IMMEDIATE")
+        try:
+            yield self._connection
+        except BaseException:
+            self._connection.execute("ROLLBACK")
+            raise
+        self._connection.execute("COMMIT")
+
+
+def _fault(receipt: Receipt, expected_sequence: int, previous: str) -> BrokenReason | None:
+    # A deleted receipt leaves a gap; an edited one no longer matches its own hash; a receipt whose hash
+    # was recomputed after an edit no longer matches the next receipt's `previous_hash`.
+    if receipt.sequence != expected_sequence:
+        return "sequence gap"
+    if receipt.computed_hash() != receipt.receipt_hash:
+        return "hash mismatch"
+    if receipt.previous_hash != previous:
+        return "previous hash does not match"
+    return None
+
+
+def _utc_now() -> str:
+    return datetime.now(UTC).isoformat(timespec="microseconds").replace("+00:00", "Z")

@@ -1,0 +1,359 @@
+"""The read-only SPARQL endpoints over real HTTP, on the embedded store and on a real Virtuoso, filled by the
+real PyPI client: standard clients and parsers read every result format, and nothing that writes or reaches
+outside the events graph gets through."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import xml.etree.ElementTree as ElementTree
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import httpx
+import pytest
+from pyoxigraph import BlankNode, Literal, NamedNode, RdfFormat, Triple, parse
+from rdflib import Graph
+from rdflib.plugins.stores.sparqlstore import SPARQLStore
+
+from backend.api.app import create_app
+from backend.services.sparql_guard import MAX_QUERY_BYTES
+from backend.services.tokens import mint_token
+from backend.store.base import Store
+from tests.conftest import make_settings
+from tests.support.live_server import LiveServer
+from tests.support.scenarios import Scenario, lobby
+
+FOAF = "http://xmlns.com/foaf/0.1/"
+EX = "http://example.org/"
+RESULTS_NS = {"r": "http://www.w3.org/2005/sparql-results#"}
+NAMES = f"PREFIX foaf: <{FOAF}>\nSELECT ?human ?name WHERE {{ ?human foaf:firstName ?name }} ORDER BY ?name"
+NAME_TRIPLES = f"PREFIX foaf: <{FOAF}>\nCONSTRUCT {{ ?h foaf:firstName ?n }} WHERE {{ ?h foaf:firstName ?n }}"
+
+
+@dataclass
+class Published:
+    url: str
+    store: Store
+    scenario: Scenario
+
+    def iri(self, name: str) -> str:
+        return str(self.scenario.iris[name])
+
+    def name_rows(self) -> list[tuple[str, str]]:
+        """What NAMES must answer, in its ORDER BY order."""
+        return [(self.iri("juan"), "Juan"), (self.iri("maria"), "Maria")]
+
+    def name_triples(self) -> set[Triple]:
+        first_name = NamedNode(FOAF + "firstName")
+        return {
+            Triple(NamedNode(self.iri(human)), first_name, Literal(name, language="en"))
+            for human, name in (("juan", "Juan"), ("maria", "Maria"))
+        }
+
+
+@pytest.fixture
+def published(api: LiveServer, store: Store) -> Published:
+    scenario = lobby()
+    scenario.publish_all(api.url)
+    return Published(api.url, store, scenario)
+
+
+def sparql(url: str, query: str, accept: str | None = None, **params: str) -> httpx.Response:
+    headers = {"Accept": accept} if accept else {}
+    return httpx.get(f"{url}/sparql", params={"query": query, **params}, headers=headers, timeout=60)
+
+
+# --- standard parsers, one per result format --------------------------------------------------------------
+
+
+def json_rows(body: bytes) -> list[tuple[str, ...]]:
+    document = json.loads(body)
+    names = document["head"]["vars"]
+    return [tuple(binding[name]["value"] for name in names) for binding in document["results"]["bindings"]]
+
+
+def xml_rows(body: bytes) -> list[tuple[str, ...]]:
+    root = ElementTree.fromstring(body)
+    names = [variable.get("name") for variable in root.findall("r:head/r:variable", RESULTS_NS)]
+    rows = []
+    for result in root.findall("r:results/r:result", RESULTS_NS):
+        values = {binding.get("name"): binding[0].text for binding in result.findall("r:binding", RESULTS_NS)}
+        rows.append(tuple(values[name] for name in names))
+    return rows  # type: ignore[return-value]
+
+
+def csv_rows(body: bytes) -> list[tuple[str, ...]]:
+    return [tuple(row) for row in list(csv.reader(io.StringIO(body.decode())))[1:]]
+
+
+def tsv_rows(body: bytes) -> list[tuple[str, ...]]:
+    """TSV cells are terms in Turtle syntax: read each one with the N-Triples parser."""
+
+    def term_value(cell: str) -> str:
+        (quad,) = parse(f"<{EX}s> <{EX}p> {cell} .".encode(), RdfFormat.N_TRIPLES)
+        return quad.object.value
+
+    lines = body.decode().splitlines()[1:]
+    return [tuple(term_value(cell) for cell in line.split("\t")) for line in lines if line]
+
+
+SOLUTION_FORMATS: list[tuple[str, str, Callable[[bytes], list[tuple[str, ...]]]]] = [
+    ("json", "application/sparql-results+json", json_rows),
+    ("xml", "application/sparql-results+xml", xml_rows),
+    ("csv", "text/csv", csv_rows),
+    ("tsv", "text/tab-separated-values", tsv_rows),
+]
+GRAPH_FORMATS = [
+    ("turtle", "text/turtle"),
+    ("ntriples", "application/n-triples"),
+    ("jsonld", "application/ld+json"),
+    ("rdfxml", "application/rdf+xml"),
+]
+
+
+def triples(response: httpx.Response) -> set[Triple]:
+    media_type = response.headers["content-type"].split(";")[0]
+    return {quad.triple for quad in parse(response.content, RdfFormat.from_media_type(media_type))}
+
+
+# --- standard clients and formats ------------------------------------------------------------------------
+
+
+def test_rdflib_sparqlstore_runs_a_select_over_every_protocol_binding(published: Published) -> None:
+    for method, return_format in (("GET", "xml"), ("POST", "json"), ("POST_FORM", "xml"), ("GET", "csv")):
+        graph = Graph(store=SPARQLStore(f"{published.url}/sparql", method=method, returnFormat=return_format))
+        rows = [(str(row.human), str(row.name)) for row in graph.query(NAMES)]  # type: ignore[union-attr]
+        assert rows == published.name_rows(), (method, return_format)
+    graph = Graph(store=SPARQLStore(f"{published.url}/sparql"))
+    assert len(graph.query(NAME_TRIPLES)) == 2
+
+
+@pytest.mark.parametrize(("name", "media_type", "read_rows"), SOLUTION_FORMATS, ids=[f[0] for f in SOLUTION_FORMATS])
+def test_every_select_format_parses_to_the_same_rows(
+    published: Published, name: str, media_type: str, read_rows: Callable[[bytes], list[tuple[str, ...]]]
+) -> None:
+    by_accept = sparql(published.url, NAMES, accept=media_type)
+    by_parameter = httpx.post(
+        f"{published.url}/sparql",
+        params={"format": name},
+        content=NAMES.encode(),
+        headers={"Content-Type": "application/sparql-query"},
+    )
+    by_form = httpx.post(f"{published.url}/sparql", data={"query": NAMES}, headers={"Accept": f"{media_type};q=0.9"})
+    for response in (by_accept, by_parameter, by_form):
+        assert response.status_code == 200, response.text
+        assert response.headers["content-type"].split(";")[0] == media_type
+        assert read_rows(response.content) == published.name_rows()
+
+
+def test_select_defaults_to_json_and_construct_to_turtle(published: Published) -> None:
+    select = sparql(published.url, NAMES, accept="*/*")
+    assert select.headers["content-type"] == "application/sparql-results+json"
+    assert json_rows(select.content) == published.name_rows()
+    construct = sparql(published.url, NAME_TRIPLES)
+    assert construct.headers["content-type"] == "text/turtle; charset=utf-8"
+    assert triples(construct) == published.name_triples()
+
+
+@pytest.mark.parametrize(("name", "media_type"), GRAPH_FORMATS, ids=[f[0] for f in GRAPH_FORMATS])
+def test_every_graph_format_parses_to_the_same_triples(published: Published, name: str, media_type: str) -> None:
+    for response in (
+        sparql(published.url, NAME_TRIPLES, accept=media_type),
+        sparql(published.url, NAME_TRIPLES, format=name),
+    ):
+        assert response.status_code == 200, response.text
+        assert response.headers["content-type"].split(";")[0] == media_type
+        assert triples(response) == published.name_triples()
+
+
+def test_describe_tells_about_a_resource(published: Published) -> None:
+    response = sparql(published.url, f"DESCRIBE <{published.iri('maria')}>", accept="application/n-triples")
+    assert response.status_code == 200, response.text
+    maria = NamedNode(published.iri("maria"))
+    assert Triple(maria, NamedNode(FOAF + "firstName"), Literal("Maria", language="en")) in triples(response)
+
+
+def test_ask_answers_true_and_false_in_json_and_xml(published: Published) -> None:
+    known = f"ASK {{ <{published.iri('maria')}> ?p ?o }}"
+    unknown = "ASK { ?s ?p 'nobody said this' }"
+    for query, expected in ((known, True), (unknown, False)):
+        as_json = sparql(published.url, query)
+        assert as_json.status_code == 200, as_json.text
+        assert json.loads(as_json.content)["boolean"] is expected
+        as_xml = sparql(published.url, query, accept="application/sparql-results+xml")
+        assert ElementTree.fromstring(as_xml.content).find("r:boolean", RESULTS_NS).text == str(expected).lower()  # type: ignore[union-attr]
+
+
+# --- what is refused --------------------------------------------------------------------------------------
+
+FORBIDDEN = [
+    ("INSERT DATA {<a:x> <a:y> <a:z>}", "update", "SPARQL Update (INSERT) is not allowed"),
+    ("DELETE WHERE {?s ?p ?o}", "update", "SPARQL Update (DELETE) is not allowed"),
+    ("prefix x: <http://x/> insert data { x:a x:b x:c }", "update", "SPARQL Update (INSERT) is not allowed"),
+    ("LOAD <http://example.org/>", "update", "SPARQL Update (LOAD) is not allowed"),
+    ("CLEAR ALL", "update", "SPARQL Update (CLEAR) is not allowed"),
+    ("select * where { SERVICE <http://example.org/sparql> { ?s ?p ?o } }", "service", "SERVICE clauses"),
+    ("select (bif:sprintf('%s','x') as ?x) {}", "virtuoso_extension", "Virtuoso extensions are not allowed"),
+    ("SELECT * { ?s ?p ?o . ?o bif:contains 'Maria' }", "virtuoso_extension", "Virtuoso extensions"),
+    ("define input:default-graph-uri <http://x> select * {?s ?p ?o}", "virtuoso_pragma", "DEFINE pragmas"),
+    ("define sql:signal-void-variables 1 select * {?s ?p ?o}", "virtuoso_pragma", "DEFINE pragmas"),
+    ("SELECT * FROM <http://ex.org/other> { ?s ?p ?o }", "dataset", "FROM <http://ex.org/other> is not allowed"),
+    ("SELECT * { GRAPH ?g { ?s ?p ?o } }", "graph", "GRAPH patterns are not supported"),
+]
+
+
+def test_forbidden_queries_get_a_400_naming_the_reason_and_change_nothing(published: Published) -> None:
+    before = published.store.count()
+    assert before > 300
+    for query, reason, fragment in FORBIDDEN:
+        for response in (
+            sparql(published.url, query),
+            httpx.post(f"{published.url}/sparql", data={"query": query}),
+            httpx.post(
+                f"{published.url}/sparql", content=query.encode(), headers={"Content-Type": "application/sparql-query"}
+            ),
+            httpx.get(f"{published.url}/query", params={"query": query}),
+        ):
+            assert response.status_code == 400, (query, response.text)
+            body = response.json()
+            assert (body["error"], body["reason"]) == ("invalid_query", reason), query
+            assert fragment in body["detail"], body["detail"]
+    # The SPARQL Update binding of the protocol (an `update` form field) is refused the same way.
+    response = httpx.post(f"{published.url}/sparql", data={"update": "DELETE WHERE {?s ?p ?o}"})
+    assert (response.status_code, response.json()["reason"]) == (400, "update")
+    assert published.store.count() == before
+    assert json_rows(sparql(published.url, NAMES).content) == published.name_rows()
+
+
+def test_a_syntax_error_answers_its_line_and_column(published: Published) -> None:
+    query = f"PREFIX foaf: <{FOAF}>\nSELECT ?name WHERE {{\n  ?h foaf:firstName ?name .\n  FILTER(?name = )\n}}"
+    response = sparql(published.url, query)
+    assert response.status_code == 400
+    body = response.json()
+    assert (body["reason"], body["line"], body["column"]) == ("syntax", 4, 3)
+    assert body["detail"] == "Invalid SPARQL syntax at line 4, column 3: unexpected 'FILTER'."
+
+
+def test_the_dataset_is_the_events_graph_only(published: Published) -> None:
+    graph = published.store.graph_uri
+    same = [
+        sparql(published.url, NAMES.replace("WHERE", f"FROM <{graph}> WHERE")),
+        sparql(published.url, NAMES, **{"default-graph-uri": graph}),
+    ]
+    for response in same:
+        assert response.status_code == 200, response.text
+        assert json_rows(response.content) == published.name_rows()
+    for params in ({"default-graph-uri": "http://ex.org/other"}, {"named-graph-uri": graph}):
+        response = sparql(published.url, NAMES, **params)
+        assert (response.status_code, response.json()["reason"]) == (400, "dataset")
+
+
+# --- protocol details (store-independent) -----------------------------------------------------------------
+
+
+def test_negotiation_failures_and_preferences(memory_api: LiveServer) -> None:
+    url = memory_api.url
+    assert sparql(url, NAMES, accept="text/html").status_code == 406
+    assert sparql(url, NAMES, format="turtle").status_code == 406
+    assert sparql(url, NAME_TRIPLES, accept="text/csv").status_code == 406
+    bogus = sparql(url, NAMES, format="yaml")
+    assert (bogus.status_code, bogus.json()["error"]) == (422, "invalid_parameter")
+    preferred = sparql(url, NAMES, accept="text/csv;q=0.5, application/sparql-results+xml, text/html")
+    assert preferred.headers["content-type"] == "application/sparql-results+xml"
+    assert sparql(url, NAMES, accept="text/*").headers["content-type"] == "text/csv; charset=utf-8"
+    assert sparql(url, NAMES, accept="application/json").headers["content-type"] == "application/sparql-results+json"
+    assert sparql(url, NAME_TRIPLES, accept="application/*").headers["content-type"] == "application/n-triples"
+    assert sparql(url, NAMES).headers["vary"] == "Accept"
+
+
+def test_bad_requests(memory_api: LiveServer) -> None:
+    url = memory_api.url
+    missing = httpx.get(f"{url}/sparql")
+    assert (missing.status_code, missing.json()["reason"]) == (400, "empty")
+    wrong_type = httpx.post(f"{url}/sparql", content=NAMES.encode(), headers={"Content-Type": "text/plain"})
+    assert wrong_type.status_code == 415
+    too_long = "SELECT * { ?s ?p ?o }" + "#" * MAX_QUERY_BYTES
+    response = httpx.post(
+        f"{url}/sparql", content=too_long.encode(), headers={"Content-Type": "application/sparql-query"}
+    )
+    assert (response.status_code, response.json()["reason"]) == (413, "too_long")
+
+
+def test_only_auditors_and_admins_may_query(memory_store: Store) -> None:
+    secret = "s" * 32
+    with LiveServer(create_app(make_settings(secret_key=secret), store=memory_store)) as server:
+        assert sparql(server.url, NAMES).status_code == 401
+        for roles, status in ((["logger"], 403), (["auditor"], 200), (["admin"], 200)):
+            token = mint_token(secret, username="someone", roles=roles).token
+            response = httpx.get(
+                f"{server.url}/sparql", params={"query": NAMES}, headers={"Authorization": f"Bearer {token}"}
+            )
+            assert response.status_code == status, roles
+
+
+# --- the reference backend's /query and /query/validate ---------------------------------------------------
+
+
+def result_rows(turtle: bytes) -> list[dict[str, object]]:
+    """Read /query's Turtle the way the reference web UI does: one row per ex:Result subject, in document
+    order, values keyed by the predicate's local name."""
+    rows: dict[object, dict[str, object]] = {}
+    for quad in parse(turtle, RdfFormat.TURTLE):
+        row = rows.setdefault(quad.subject, {})
+        if quad.predicate.value != "http://www.w3.org/1999/02/22-rdf-syntax-ns#type":
+            row[quad.predicate.value.removeprefix(EX)] = quad.object
+        else:
+            assert quad.object == NamedNode(EX + "Result")
+    assert all(isinstance(subject, BlankNode) for subject in rows)
+    return list(rows.values())
+
+
+def test_reference_query_encodes_rows_as_turtle_in_order(published: Published) -> None:
+    response = httpx.get(f"{published.url}/query", params={"query": NAMES})
+    assert response.status_code == 200, response.text
+    assert response.headers["content-type"] == "text/turtle; charset=utf-8"
+    assert result_rows(response.content) == [
+        {"human": NamedNode(iri), "name": Literal(name, language="en")} for iri, name in published.name_rows()
+    ]
+    ask = httpx.get(f"{published.url}/query", params={"query": f"ASK {{ <{published.iri('juan')}> ?p ?o }}"})
+    assert result_rows(ask.content) == [{"boolean": Literal(True)}]
+    construct = httpx.get(f"{published.url}/query", params={"query": NAME_TRIPLES})
+    assert triples(construct) == published.name_triples()
+    assert httpx.get(f"{published.url}/query").status_code == 422  # the reference's answer to a missing query
+
+
+def validate(url: str, query: str) -> dict[str, object]:
+    response = httpx.post(f"{url}/query/validate", json={"query": query})
+    assert response.status_code == 200, response.text
+    return response.json()
+
+
+def test_reference_validate_reports_without_running(memory_api: LiveServer) -> None:
+    url = memory_api.url
+    assert validate(url, NAMES) == {
+        "valid": True,
+        "query_kind": "select",
+        "form": "select",
+        "allows_update_execution": False,
+        "message": "Valid SPARQL query.",
+        "error": None,
+        "reason": None,
+        "line": None,
+        "column": None,
+    }
+    update = validate(url, "prefix x: <http://x/> insert data { x:a x:b x:c }")
+    assert (update["valid"], update["query_kind"], update["reason"]) == (False, "update", "update")
+    assert update["message"] == update["error"]
+    assert str(update["message"]).startswith("SPARQL Update (INSERT) is not allowed")
+    syntax = validate(url, "SELECT ?s WHERE {\n  ?s ?p\n}")
+    assert (syntax["valid"], syntax["reason"], syntax["line"], syntax["column"]) == (False, "syntax", 2, 3)
+    service = validate(url, "SELECT * { SERVICE <http://example.org/sparql> { ?s ?p ?o } }")
+    assert (service["valid"], service["query_kind"], service["reason"]) == (False, "select", "service")
+    unknown = validate(url, "HELLO WORLD")
+    assert (unknown["valid"], unknown["query_kind"], unknown["form"]) == (False, "unknown", None)
+    for form in ("ask", "construct", "describe"):
+        query = {"ask": "ASK {}", "construct": "CONSTRUCT WHERE { ?s ?p ?o }", "describe": "DESCRIBE <http://x.org/>"}
+        assert validate(url, query[form])["query_kind"] == form
+    assert httpx.post(f"{url}/query/validate", json={}).status_code == 422

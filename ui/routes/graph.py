@@ -1,0 +1,71 @@
+"""/kg-graph (the interactive knowledge-graph explorer) and /explain (the causal story of one event).
+
+The browser fetches graph data from this UI server (`/kg-graph/data`, `/kg-graph/resource`), which asks the
+API with the viewer's token: the page's CSP allows connections to its own origin only, and the token stays
+in an HttpOnly cookie.
+"""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, Request
+from fastapi.responses import HTMLResponse, Response
+
+from ui.choices import participant_choices
+from ui.pages import backend, render, token
+from ui.routes.reports import report_filters
+
+router = APIRouter()
+
+GRAPH_PARAMETERS = ("limit", "robot", "since", "until", "types", "focus", "depth", "q")
+KIND_LEGEND = ["robot", "human", "shared-event", "activity", "message", "emotion", "state", "model", "other"]
+
+
+def graph_parameters(request: Request) -> dict[str, str]:
+    values = {name: request.query_params.get(name, "").strip() for name in GRAPH_PARAMETERS}
+    times = report_filters(request)  # adds the zone a browser time picker leaves out
+    values.update({name: times.get(name, "") for name in ("since", "until")})
+    if request.query_params.getlist("kind"):
+        values["types"] = ",".join(request.query_params.getlist("kind"))
+    return {name: value for name, value in values.items() if value}
+
+
+@router.get("/kg-graph", response_class=HTMLResponse)
+async def graph_page(request: Request) -> HTMLResponse:
+    parameters = graph_parameters(request)
+    choices = await participant_choices(request)
+    data_query = request.url.query
+    return render(
+        request,
+        "kg-graph.html",
+        {
+            "parameters": parameters,
+            "chosen_kinds": set(request.query_params.getlist("kind")),
+            "choices": choices,
+            "kinds": KIND_LEGEND,
+            "data_src": "/kg-graph/data" + (f"?{data_query}" if data_query else ""),
+        },
+    )
+
+
+async def _relay_json(request: Request, path: str, params: dict[str, str]) -> Response:
+    """The API's JSON as is: thousands of nodes need not be decoded and encoded again here."""
+    answer = await backend(request).request("GET", path, token=token(request), params=params)
+    return Response(answer.content, media_type="application/json")
+
+
+@router.get("/kg-graph/data")
+async def graph_data(request: Request) -> Response:
+    return await _relay_json(request, "/graph", graph_parameters(request))
+
+
+@router.get("/kg-graph/resource")
+async def graph_resource(request: Request, iri: str) -> Response:
+    return await _relay_json(request, "/resource", {"iri": iri})
+
+
+@router.get("/explain", response_class=HTMLResponse)
+async def explain_page(request: Request, iri: str = "") -> HTMLResponse:
+    story = None
+    if iri.strip():
+        story = await backend(request).get_json("/explain", token=token(request), params={"iri": iri.strip()})
+    return render(request, "explain.html", {"iri": iri, "story": story})

@@ -1,0 +1,44 @@
+"""/ledger: the ingest receipts, newest first, under the result of checking their hash chain."""
+
+from __future__ import annotations
+
+import asyncio
+
+from fastapi import APIRouter, Request
+from fastapi.responses import HTMLResponse
+
+from ui.pages import backend, render, token
+
+router = APIRouter()
+
+PAGE_ROWS = 100
+MAX_ROWS = 1000  # the API's largest page
+
+
+def _paging(request: Request) -> tuple[int, int]:
+    def whole(name: str, default: int) -> int:
+        raw = request.query_params.get(name, "")
+        return int(raw) if raw.isdigit() else default
+
+    return max(1, min(whole("limit", PAGE_ROWS), MAX_ROWS)), whole("offset", 0)
+
+
+@router.get("/ledger", response_class=HTMLResponse)
+async def ledger_page(request: Request) -> HTMLResponse:
+    client, user_token = backend(request), token(request)
+    limit, offset = _paging(request)
+    listing, verification = await asyncio.gather(
+        client.get_json("/ledger", token=user_token, params={"limit": limit, "offset": offset}),
+        client.get_json("/ledger/verify", token=user_token),
+    )
+    return render(
+        request,
+        "ledger.html",
+        {
+            "receipts": listing["receipts"],
+            "total": listing["total"],
+            "limit": limit,
+            "offset": offset,
+            "verification": verification,
+        },
+    )
