@@ -21,7 +21,7 @@ from tqdm import tqdm
 
 from backend.config import Settings
 from backend.services.errors import ServiceError
-from backend.store.base import StoreError
+from backend.store.base import Store, StoreError
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -48,6 +48,7 @@ def _parser() -> argparse.ArgumentParser:
     serve.add_argument("--ui-port", type=int, help="UI port (UI_PORT, default 8080)")
     serve.add_argument("--backend-url", help="URL the UI uses to reach the API (BACKEND_URL)")
     serve.add_argument("--only", choices=["api", "ui"], help="run just one of the two servers")
+    serve.add_argument("--demo", action="store_true", help="load the demo dataset at start-up if the store is empty")
     serve.set_defaults(handler=_serve)
 
     load = commands.add_parser("import", help="load Turtle (.ttl) or N-Triples (.nt) files into the store")
@@ -72,6 +73,11 @@ def _parser() -> argparse.ArgumentParser:
     token.add_argument("--allow-weak-secret", action="store_true", help="accept a secret under 32 characters")
     token.add_argument("--json", action="store_true", help="print token, username, roles, exp as JSON")
     token.set_defaults(handler=_token)
+
+    demo = commands.add_parser("demo", help="publish the demo dataset (robots ARI and TIAGo) to a running server")
+    demo.add_argument("--server", help="API base URL (default http://127.0.0.1:<API_PORT>)")
+    demo.add_argument("--token", help="bearer token with the logger role, when the server has SECRET_KEY set")
+    demo.set_defaults(handler=_demo)
     return parser
 
 
@@ -98,16 +104,37 @@ def _serve(args: argparse.Namespace) -> int:
     from backend.api.app import create_app
     from ui.app import create_ui_app
 
+    if args.demo and args.only == "ui":
+        return _fail("--demo fills the API's store: drop --only ui")
+    store = _demo_store(settings) if args.demo else None
     configs = []
     if args.only in (None, "api"):
-        configs.append(uvicorn.Config(create_app(settings), host=settings.host, port=settings.api_port))
+        configs.append(uvicorn.Config(create_app(settings, store=store), host=settings.host, port=settings.api_port))
     if args.only in (None, "ui"):
         configs.append(uvicorn.Config(create_ui_app(settings), host=settings.host, port=settings.ui_port))
     if args.only is None:
         print(f"SEGB API  http://{settings.host}:{settings.api_port}/docs", file=sys.stderr)
     print(f"SEGB UI   http://{settings.host}:{settings.ui_port}/reports", file=sys.stderr)
-    asyncio.run(_serve_together([_QuietServer(config) for config in configs]))
+    try:
+        asyncio.run(_serve_together([_QuietServer(config) for config in configs]))
+    finally:
+        if store is not None:
+            store.close()
     return 0
+
+
+def _demo_store(settings: Settings) -> Store:
+    """The store, opened here rather than by the app so the demo is in it before the first request."""
+    from backend.demo import load_demo
+    from backend.store.factory import open_store
+
+    store = open_store(settings)
+    try:
+        load_demo(settings, store)
+    except BaseException:
+        store.close()
+        raise
+    return store
 
 
 class _QuietServer(uvicorn.Server):
@@ -171,6 +198,14 @@ def _export(args: argparse.Namespace) -> int:
                     output.write(chunk)
     finally:
         store.close()
+    return 0
+
+
+def _demo(args: argparse.Namespace) -> int:
+    from backend.demo import publish_demo
+
+    server = args.server or f"http://127.0.0.1:{Settings().api_port}"
+    print(publish_demo(server, args.token))
     return 0
 
 

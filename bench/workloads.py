@@ -118,10 +118,12 @@ def ntriples_of(interactions: int, robot_name: str) -> str:
 
 
 def replicate(ntriples: str, copies: int, robot_name: str = "mirror") -> Iterator[str]:
-    """`copies` relabelled copies of one robot's N-Triples: robot i gets its own namespace and visitor, and
-    its times shift by i days, so report filters and orderings are not degenerate."""
+    """`copies` relabelled copies of one robot's N-Triples: robot i gets its own namespace, visitor and shared
+    events, and its times shift by i days, so report filters and orderings are not degenerate."""
     for copy in range(copies):
         text = ntriples.replace(f"/robots/{robot_name}/", f"/robots/{robot_name}{copy}/")
+        # Shared events are keyed by the visitor, so another robot's visitor has events of its own.
+        text = text.replace("/segb/shared-events/", f"/segb/shared-events/copy{copy}-")
         if copy:
             text = text.replace("2026-03-10T", f"2026-03-{10 + copy % 18:02d}T")
         yield text

@@ -11,6 +11,7 @@ from backend.services.graph import GraphService
 from backend.services.ingest import IngestService
 from backend.services.ledger import LEDGER_FILE, Ledger
 from backend.services.reports import ReportService
+from backend.services.result_cache import OWNED_STORES, DataVersion, ResultCache
 from backend.store.base import Store
 
 
@@ -28,16 +29,21 @@ class Services:
 
 def build_services(settings: Settings, store: Store) -> Services:
     catalog = Catalog(settings.sparql_dir)
-    graph = GraphService(catalog, store)
+    version = DataVersion()
+    cache = ResultCache(version, enabled=store.kind in OWNED_STORES)
+    graph = GraphService(catalog, store, cache)
     return Services(
         settings=settings,
         store=store,
         catalog=catalog,
-        reports=ReportService(catalog, store),
+        reports=ReportService(catalog, store, cache),
         graph=graph,
         explain=ExplainService(graph),
         ingest=IngestService(
-            store, skolem_base=settings.effective_skolem_base, max_triples=settings.max_triples_per_post
+            store,
+            skolem_base=settings.effective_skolem_base,
+            max_triples=settings.max_triples_per_post,
+            version=version,
         ),
         # A memory store keeps its ledger in memory too: nothing of such a server is meant to be written.
         ledger=Ledger(None if settings.store == "memory" else settings.data_dir / LEDGER_FILE),

@@ -17,6 +17,7 @@ from backend.services.catalog import Catalog
 from backend.services.errors import InvalidParameter
 from backend.services.kinds import KINDS, Kind, kind_of
 from backend.services.namespaces import PREFIXES, compact
+from backend.services.result_cache import DataVersion, ResultCache
 from backend.services.term_values import iso_time, json_value
 from backend.store.base import Store, select
 
@@ -198,11 +199,15 @@ def _normal_time(value: str | None) -> str | None:
 
 
 class GraphService:
-    def __init__(self, catalog: Catalog, store: Store) -> None:
+    def __init__(self, catalog: Catalog, store: Store, cache: ResultCache | None = None) -> None:
         self.catalog = catalog
         self.store = store
+        self.cache = cache or ResultCache(DataVersion(), enabled=False)
 
     def load(self) -> KnowledgeGraph:
+        return self.cache.get(("graph",), self._load)
+
+    def _load(self) -> KnowledgeGraph:
         query = self.catalog.get("graph/elements")
         rows = select(self.store, query.text).rows
         return KnowledgeGraph.from_triples(

@@ -8,8 +8,9 @@ from dataclasses import dataclass
 
 from backend.services.catalog import Catalog, CatalogQuery, paged
 from backend.services.errors import NotFound
+from backend.services.result_cache import DataVersion, ResultCache
 from backend.services.term_values import JsonValue, json_value
-from backend.store.base import Store, select
+from backend.store.base import Bindings, Store, select
 
 FOLDER = "reports"
 
@@ -55,9 +56,10 @@ def _csv_cell(value: JsonValue) -> str:
 
 
 class ReportService:
-    def __init__(self, catalog: Catalog, store: Store) -> None:
+    def __init__(self, catalog: Catalog, store: Store, cache: ResultCache | None = None) -> None:
         self.catalog = catalog
         self.store = store
+        self.cache = cache or ResultCache(DataVersion(), enabled=False)
 
     def reports(self) -> list[CatalogQuery]:
         return self.catalog.under(FOLDER)
@@ -77,10 +79,16 @@ class ReportService:
         """Rows `offset`…`offset+limit` of a report; blocking (store I/O), so call it off the event loop."""
         query = self.report(name)
         bindings = query.bindings(filters)
+        key = ("report", name, tuple(sorted((k, str(v)) for k, v in bindings.items())), limit, offset)
+        return self.cache.get(key, lambda: self._compute(query, bindings, limit, offset))
+
+    def _compute(self, query: CatalogQuery, bindings: Bindings, limit: int, offset: int) -> ReportTable:
         # One row past the page tells whether another page exists without counting the whole result.
         result = select(self.store, paged(query.text, limit + 1, offset), bindings)
         rows = [{column: json_value(row.get(column)) for column in result.columns} for row in result.rows[:limit]]
-        return ReportTable(name, query.title, result.columns, rows, limit, offset, len(result.rows) > limit)
+        return ReportTable(
+            short_name(query), query.title, result.columns, rows, limit, offset, len(result.rows) > limit
+        )
 
 
 def short_name(query: CatalogQuery) -> str:

@@ -260,3 +260,27 @@ def test_a_filter_value_cannot_inject_sparql(published: Published) -> None:
     assert response.status_code in (200, 422)
     if response.status_code == 200:
         assert response.json()["rows"] == []
+
+
+def test_reports_follow_every_write_even_when_cached(memory_api: LiveServer) -> None:
+    """The embedded store caches report pages; a publish or a delete must show up at once."""
+    scenario = lobby()
+    steps = iter(scenario.steps)
+    publisher = SEGBPublisher(base_url=memory_api.url)
+
+    def conversations() -> list[str]:
+        return [row["text"] for row in httpx.get(f"{memory_api.url}/reports/conversations").json()["rows"]]
+
+    for robot, step in steps:
+        step()
+        scenario.loggers[robot].publish(publisher)
+        if step.__name__ == "maria_speaks":
+            break
+    assert conversations() == ["I passed my driving test today!", "Congratulations, Maria!"]
+    assert conversations() == ["I passed my driving test today!", "Congratulations, Maria!"]  # from the cache
+    for robot, step in steps:
+        step()
+        scenario.loggers[robot].publish(publisher)
+    assert "Thanks!" in conversations()
+    httpx.post(f"{memory_api.url}/ttl/delete_all", json={"user": "admin"})
+    assert conversations() == []

@@ -1,0 +1,194 @@
+"""The demo dataset: two robots' logs made by the real robot client, so a first look at the reports and the
+graph explorer shows every kind of record the server audits.
+
+* ARI runs the emotion-mirror mission (`examples/emotion_mirror`) with Maria: the example's default script
+  of expressions, utterances and replies. Its face model carries training lineage (dataset, evaluation).
+* TIAGo stands in the same lobby and hears Maria's first utterance too. Both robots use one shared-event
+  namespace, Maria's IRI (ARI's) as the subject, the same text and time, so the client mints the *same*
+  shared-event IRI on both sides: two robots' activities about one event.
+* Then Carlos talks to TIAGo. The emotion TIAGo reads on his face is about no shared event, and TIAGo's
+  last state (docking) has no location: the cases the reference reports drop and this server keeps.
+
+Timestamps are fixed. Some IRIs the client mints are random (emotions, state properties), so the Turtle
+differs between runs; loading it twice would duplicate those nodes, hence the "only when empty" rules.
+"""
+
+from __future__ import annotations
+
+import logging
+from datetime import UTC, datetime, timedelta
+from typing import TYPE_CHECKING, Any
+
+import httpx
+from pyoxigraph import RdfFormat
+from rdflib import Graph
+
+from backend.config import Settings
+from backend.services.container import build_services
+from backend.services.errors import ServiceError
+from backend.services.ingest import IngestResult
+from backend.services.payloads import RdfPayload
+from backend.store.base import Store
+
+if TYPE_CHECKING:  # the robot code is imported when a demo is built, not whenever the CLI starts
+    from examples.emotion_mirror.mission import EmotionMirrorMission
+
+logger = logging.getLogger("segb.demo")
+
+DEMO_USER = "segb-demo"
+SHARED_EVENTS = "https://example.org/segb/shared-events/"
+ARI_ROBOT = "https://example.org/segb/robots/ari/v1/robot_ari"
+CARLOS_AT = datetime(2026, 3, 10, 10, 1, 0, tzinfo=UTC)
+
+
+class DemoError(ServiceError):
+    """The demo dataset cannot be made or delivered; the message says what to do."""
+
+    code = "demo_unavailable"
+
+
+def demo_turtle() -> str:
+    """Both robots' graphs, merged, as one Turtle document (as if their two processes had published)."""
+    graphs = [mission.logger.graph for mission in _run_missions()]
+    merged = Graph()
+    for graph in graphs:
+        for prefix, namespace in graph.namespaces():
+            merged.bind(prefix, namespace, override=False)
+        merged += graph
+    return merged.serialize(format="turtle")
+
+
+def load_demo(settings: Settings, store: Store) -> IngestResult | None:
+    """Ingest the demo into `store` when it holds nothing, through the API's own ingest service and
+    ledger (so the receipt tells where the data came from); None when the store already has data."""
+    present = store.count()
+    if present:
+        logger.info("demo dataset not loaded: the store already holds %d triples", present)
+        return None
+    payload = RdfPayload(demo_turtle().encode("utf-8"), RdfFormat.TURTLE, claimed_user=DEMO_USER)
+    services = build_services(settings, store)
+    try:
+        result = services.ingest.ingest(payload, actor=DEMO_USER)
+        services.ledger.append(
+            action="ingest",
+            log_id=result.log_id,
+            user=DEMO_USER,
+            claimed_user=DEMO_USER,
+            payload=payload.data,
+            triples_received=result.triples_received,
+            triples_new=result.triples_new,
+        )
+    finally:
+        services.ledger.close()
+    logger.info(
+        "demo dataset loaded: %d triples (robots ARI and TIAGo, humans Maria and Carlos; log_id=%s)",
+        result.triples_new,
+        result.log_id,
+    )
+    return result
+
+
+def publish_demo(server: str, token: str | None = None) -> str:
+    """POST the demo to a running server with the robot client's `SEGBPublisher`; returns what happened.
+    A server that already shows ARI's interactions is left alone, so running this twice adds nothing."""
+    server = server.rstrip("/")
+    headers = {"Authorization": f"Bearer {token}"} if token else {}
+    try:
+        known = httpx.get(
+            f"{server}/reports/participants", params={"robot": ARI_ROBOT, "limit": 1}, headers=headers, timeout=10
+        )
+    except (httpx.HTTPError, httpx.InvalidURL) as error:
+        raise DemoError(f"cannot reach the SEGB server at {server} ({error}); start one with `segb serve`") from None
+    # Without the auditor role the check is refused (401/403): publish anyway, the logger role suffices.
+    if known.status_code == 200 and known.json()["rows"]:
+        return f"{server} already has the demo dataset (ARI's interactions are there): nothing sent"
+    from requests import RequestException
+    from semantic_log_generator import SEGBPublisher
+
+    publisher = SEGBPublisher(base_url=server, token=token, default_user=DEMO_USER)
+    try:
+        response: dict[str, Any] = publisher.publish_turtle(demo_turtle())
+    except (RequestException, RuntimeError) as error:
+        raise DemoError(f"publishing the demo to {server} failed: {error}") from None
+    return (
+        f"demo dataset published to {server}: {response.get('triples_received')} triples, "
+        f"{response.get('triples_new')} new (robots ARI and TIAGo, humans Maria and Carlos)"
+    )
+
+
+def _run_missions() -> list[EmotionMirrorMission]:
+    from semantic_log_generator import RobotStateSnapshot
+
+    from examples.emotion_mirror.driver import play
+    from examples.emotion_mirror.mission import EmotionMirrorMission, RobotConfig
+    from examples.emotion_mirror.script import Utterance, default_script
+
+    script = default_script()
+    ari = EmotionMirrorMission.start(
+        RobotConfig(
+            robot_id="ari", robot_name="ARI", base_namespace="https://example.org/segb/robots/ari/v1/", location="lobby"
+        ),
+        human_id=script.human_id,
+        human_name=script.human_name,
+        shared_event_namespace=SHARED_EVENTS,
+    )
+    _training_lineage(ari)
+    for _ in play(ari, script):
+        pass
+
+    tiago = EmotionMirrorMission.start(
+        RobotConfig(
+            robot_id="tiago",
+            robot_name="TIAGo",
+            base_namespace="https://example.org/segb/robots/tiago/v1/",
+            location="lobby",
+        ),
+        human_id=script.human_id,
+        human_name=script.human_name,
+        human=ari.human,
+        shared_event_namespace=SHARED_EVENTS,
+        battery=0.47,
+    )
+    # TIAGo overhears Maria's first utterance (ARI answers it): same namespace, subject IRI, text and time as
+    # on ARI's side, so the client mints the same shared-event IRI.
+    first = next(event for event in script.events if isinstance(event, Utterance))
+    tiago.on_user_utterance(first.text, first.at)
+
+    # The mission attends one person at a time; TIAGo now turns to Carlos.
+    tiago.human = tiago.logger.register_human("carlos", first_name="Carlos")
+    tiago.on_face_expression("angry", CARLOS_AT, confidence=0.88)
+    question = tiago.on_user_utterance("Where is the pharmacy? I have been waiting for ages.", CARLOS_AT + _s(1))
+    tiago.respond(question, CARLOS_AT + _s(2.5))
+    tiago.logger.log_robot_state(
+        RobotStateSnapshot(
+            timestamp=CARLOS_AT + _s(60),
+            battery_level=0.46,
+            mission_phase="docking",
+            autonomy_mode="autonomous",
+            note="Going back to the charger",
+        ),
+        state_id="state_docking",
+    )
+    return [ari, tiago]
+
+
+def _training_lineage(ari: EmotionMirrorMission) -> None:
+    """How ARI's face model was made: a training run with a dataset in and an evaluation out."""
+    from semantic_log_generator import ActivityKind
+
+    log = ari.logger
+    started = datetime(2026, 2, 2, 8, 0, tzinfo=UTC)
+    run = log.log_activity(
+        activity_id="train_face_emotion",
+        activity_kind=ActivityKind.ML_RUN,
+        label="Train the emotion CNN",
+        started_at=started,
+        ended_at=started + timedelta(hours=6),
+    )
+    log.link_ml_run_input(run, log.register_dataset("fer2013", label="FER-2013 facial expressions"))
+    log.link_ml_run_output(run, ari.models["face"])
+    log.link_ml_run_output(run, log.register_model_evaluation("face_emotion_accuracy", value=0.71, label="Accuracy"))
+
+
+def _s(seconds: float) -> timedelta:
+    return timedelta(seconds=seconds)

@@ -1,0 +1,130 @@
+"""The demo dataset: `segb demo` publishes it to a running server, `segb serve --demo` loads it once."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import httpx
+
+from tests.cli.test_cli import clean_env, segb, wait_for
+from tests.support.live_server import LiveServer
+from tests.support.net import free_port
+
+REPORTS = ["participants", "ml-usage", "emotion-timeline", "extreme-emotions", "conversations", "robot-states"]
+# Shared events that activities of two different robots are about.
+SHARED_BY_TWO_ROBOTS = """
+PREFIX schema: <http://schema.org/>
+PREFIX segb: <http://www.gsi.upm.es/ontologies/segb/ns#>
+SELECT DISTINCT ?event WHERE {
+  ?one schema:about ?event ; segb:wasPerformedBy ?first .
+  ?other schema:about ?event ; segb:wasPerformedBy ?second .
+  FILTER (?first != ?second)
+}
+"""
+
+
+def rows(url: str, name: str) -> list[dict[str, Any]]:
+    response = httpx.get(f"{url}/reports/{name}", timeout=30)
+    assert response.status_code == 200, response.text
+    return response.json()["rows"]
+
+
+def triple_count(url: str) -> int:
+    return len(httpx.get(f"{url}/events", params={"format": "ntriples"}, timeout=30).text.splitlines())
+
+
+def test_segb_demo_fills_every_report_once(memory_api: LiveServer) -> None:
+    published = segb("demo", "--server", memory_api.url)
+    assert published.returncode == 0, published.stderr
+    assert "demo dataset published" in published.stdout
+
+    for name in REPORTS:
+        assert rows(memory_api.url, name), f"{name} has no rows"
+    pairs = {(row["humanName"], row["robotName"]) for row in rows(memory_api.url, "participants")}
+    assert pairs == {("Maria", "ARI"), ("Maria", "TIAGo"), ("Carlos", "TIAGo")}
+
+    # ARI and TIAGo heard Maria's first utterance as one shared event.
+    shared = httpx.get(
+        f"{memory_api.url}/sparql",
+        params={"query": SHARED_BY_TWO_ROBOTS},
+        headers={"Accept": "application/sparql-results+json"},
+        timeout=30,
+    ).json()["results"]["bindings"]
+    assert len(shared) == 1
+    assert shared[0]["event"]["value"].startswith("https://example.org/segb/shared-events/human_utterance_")
+
+    # The cases the reference reports drop: an emotion about no shared event, a state without location.
+    carlos = [row for row in rows(memory_api.url, "emotion-timeline") if row["targetName"] == "Carlos"]
+    assert [(row["category"], row["robotName"]) for row in carlos] == [("anger", "TIAGo")]
+    docking = [row for row in rows(memory_api.url, "robot-states") if row["value"] == "docking"]
+    assert [(row["robotName"], row["location"], row["note"]) for row in docking] == [
+        ("TIAGo", None, "Going back to the charger")
+    ]
+    usage = rows(memory_api.url, "ml-usage")
+    lineage = {(row["datasetName"], row["score"]) for row in usage if row["robotName"] == "ARI"}
+    assert ("FER-2013 facial expressions", 0.71) in lineage
+
+    before = triple_count(memory_api.url)
+    again = segb("demo", "--server", memory_api.url)
+    assert again.returncode == 0, again.stderr
+    assert "already has the demo dataset" in again.stdout
+    assert triple_count(memory_api.url) == before
+
+
+def test_segb_demo_says_when_no_server_answers() -> None:
+    server = f"http://127.0.0.1:{free_port()}"
+    result = segb("demo", "--server", server)
+    assert result.returncode == 2
+    assert f"cannot reach the SEGB server at {server}" in result.stderr
+
+
+def test_serve_demo_loads_the_dataset_into_an_empty_store_only(tmp_path: Path) -> None:
+    first = serve_demo(tmp_path)
+    assert "demo dataset loaded" in first.log
+    assert first.participants
+    assert first.ledger == 1  # the load has its receipt, like any post
+    assert all(name in first.page for name in ("Maria", "Carlos", "ARI", "TIAGo"))  # the UI's /reports is full
+
+    second = serve_demo(tmp_path)
+    assert "demo dataset not loaded: the store already holds" in second.log
+    assert second.triples == first.triples
+    assert second.participants == first.participants
+    assert second.ledger == 1
+
+
+@dataclass(frozen=True)
+class Served:
+    log: str
+    triples: int
+    participants: list[dict[str, Any]]
+    ledger: int  # receipts
+    page: str  # the UI's /reports page
+
+
+def serve_demo(data_dir: Path) -> Served:
+    """Start `segb serve --demo` on free ports, read what a newcomer would see, stop it."""
+    api_port, ui_port = free_port(), free_port()
+    process = subprocess.Popen(
+        [sys.executable, "-m", "backend.cli", "serve", "--demo", "--data-dir", str(data_dir)],
+        env=clean_env({"API_PORT": str(api_port), "UI_PORT": str(ui_port)}),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    api = f"http://127.0.0.1:{api_port}"
+    try:
+        wait_for(f"{api}/healthz/ready", timeout=60)
+        participants = rows(api, "participants")
+        triples = triple_count(api)
+        ledger = httpx.get(f"{api}/ledger", timeout=30).json()["total"]
+        page = wait_for(f"http://127.0.0.1:{ui_port}/reports").text
+    finally:
+        process.send_signal(signal.SIGTERM)
+        log, _ = process.communicate(timeout=30)
+    assert process.returncode == 0, log
+    return Served(log, triples, participants, ledger, page)

@@ -1,0 +1,148 @@
+"""The emotion-mirror robot, driven by its runner against a live API, read back through the audit reports."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import httpx
+import pytest
+
+from examples.emotion_mirror import run
+from examples.emotion_mirror.mission import FALLBACK_REPLY
+from examples.emotion_mirror.script import Expression, Utterance, default_script
+from tests.support.live_server import LiveServer
+from tests.support.net import free_port
+
+ROOT = Path(__file__).resolve().parents[2]
+SAMPLE_SCRIPT = ROOT / "examples" / "emotion_mirror" / "sample_script.json"
+REPLY_SOURCES = """
+PREFIX mls: <http://www.w3.org/ns/mls#>
+PREFIX rdfs: <http://www.w3.org/2000/01/rdf-schema#>
+SELECT ?activity ?source WHERE {
+  ?activity mls:hasInput ?setting .
+  ?setting mls:specifiedBy ?parameter ; mls:hasValue ?source .
+  ?parameter rdfs:label "reply_source"@en .
+}
+"""
+
+
+def closed_port_url() -> str:
+    """An address where nothing listens: no Ollama (or SEGB) server can answer there."""
+    return f"http://127.0.0.1:{free_port()}"
+
+
+def drive(server: LiveServer, *extra: str) -> int:
+    # --ollama-host points at a closed port so the fallback is used even where an Ollama server runs.
+    return run.main(["--server", server.url, "--ollama-host", closed_port_url(), *extra])
+
+
+def report(server: LiveServer, name: str, **params: str) -> list[dict[str, Any]]:
+    response = httpx.get(f"{server.url}/reports/{name}", params=params, timeout=30)
+    assert response.status_code == 200, response.text
+    return response.json()["rows"]
+
+
+def test_the_default_script_fills_the_four_tutorial_reports(
+    memory_api: LiveServer, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert drive(memory_api) == 0
+    printed = capsys.readouterr().out.splitlines()
+    assert len(printed) == 1 + 12  # the start, then 4 expressions, 4 utterances and 4 replies
+    assert all("new of" in line for line in printed)
+    assert sum("[fallback]" in line for line in printed) == 4
+
+    participants = report(memory_api, "participants")
+    assert [(row["humanName"], row["robotName"]) for row in participants] == [("Maria", "Emotion Mirror")]
+    assert participants[0]["robot"].endswith("/robot_mirror")
+    assert participants[0]["interactions"] == 12  # 4 recognitions, 4 listenings, 4 responses
+
+    usage = report(memory_api, "ml-usage")
+    models = {(row["activityKind"], row["modelName"], row["version"], row["provider"]) for row in usage}
+    assert models == {
+        ("emotion-recognition", "Emotion Big6 CNN", "1.0", "GSI-UPM"),
+        ("response", "llama3.2", "3.2", "Ollama"),
+    }
+    assert len(usage) == 8
+
+    timeline = report(memory_api, "emotion-timeline")
+    read = [row for row in timeline if row["targetKind"] == "human"]
+    assert [row["category"] for row in read] == ["happiness", "surprise", "sadness", "happiness"]
+    assert [row["intensity"] for row in read] == [0.92, 0.81, 0.64, 0.95]
+    assert {row["targetName"] for row in read} == {"Maria"}
+    seen = [event.at for event in default_script().events if isinstance(event, Expression)]
+    assert [row["time"] for row in read] == [at.strftime("%Y-%m-%dT%H:%M:%SZ") for at in seen]
+    mirrored = [row["category"] for row in timeline if row["targetKind"] == "robot"]
+    assert mirrored == ["happiness", "surprise", "sadness", "happiness"]  # the robot mirrors what it read
+
+    conversation = report(memory_api, "conversations")
+    said = [event.text for event in default_script().events if isinstance(event, Utterance)]
+    expected = [turn for text in said for turn in (("human", text), ("robot", FALLBACK_REPLY))]
+    assert [(row["speaker"], row["text"]) for row in conversation] == expected
+    assert {(row["humanName"], row["robotName"]) for row in conversation} == {("Maria", "Emotion Mirror")}
+    assert [row["time"] for row in conversation] == sorted(row["time"] for row in conversation)
+
+    # Where each reply came from is logged as the `reply_source` parameter of the response activity.
+    sources = httpx.get(
+        f"{memory_api.url}/sparql",
+        params={"query": REPLY_SOURCES},
+        headers={"Accept": "application/sparql-results+json"},
+        timeout=30,
+    ).json()["results"]["bindings"]
+    responses = {row["activity"] for row in usage if row["activityKind"] == "response"}
+    assert {binding["activity"]["value"] for binding in sources} == responses
+    assert [binding["source"]["value"] for binding in sources] == ["fallback"] * 4
+    assert {row["activityName"] for row in usage if row["activityKind"] == "response"} == {
+        "Reply to the user (fallback)"
+    }
+
+
+def test_a_script_file_is_replayed_in_time_order(memory_api: LiveServer, tmp_path: Path) -> None:
+    script = json.loads(SAMPLE_SCRIPT.read_text(encoding="utf-8"))
+    script["events"].reverse()  # written out of order: replayed by time all the same
+    shuffled = tmp_path / "script.json"
+    shuffled.write_text(json.dumps(script), encoding="utf-8")
+
+    assert drive(memory_api, "--script", str(shuffled)) == 0
+    assert [row["humanName"] for row in report(memory_api, "participants")] == ["Leo"]
+    timeline = report(memory_api, "emotion-timeline", threshold="0.6")
+    assert [(row["time"], row["category"]) for row in timeline if row["targetKind"] == "human"] == [
+        ("2026-03-11T16:30:00Z", "fear"),
+        ("2026-03-11T16:30:09Z", "surprise"),
+    ]
+    conversation = report(memory_api, "conversations")
+    assert [(row["time"], row["speaker"]) for row in conversation] == [
+        ("2026-03-11T16:30:02Z", "human"),
+        ("2026-03-11T16:30:03.5Z", "robot"),
+        ("2026-03-11T16:30:10Z", "human"),
+        ("2026-03-11T16:30:12Z", "robot"),
+    ]
+
+
+def test_a_bad_script_is_refused_before_anything_is_published(
+    memory_api: LiveServer, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"human": {"id": "x", "name": "X"}, "events": [{"at": 0, "expression": "bored"}]}))
+    assert drive(memory_api, "--script", str(bad)) == 2
+    assert "events[0].expression 'bored' is not a Big6 emotion" in capsys.readouterr().err
+    assert report(memory_api, "participants") == []
+    assert httpx.get(f"{memory_api.url}/events", params={"format": "ntriples"}).text.strip() == ""
+
+
+def test_an_unreachable_server_fails_with_a_clear_message() -> None:
+    server = closed_port_url()
+    result = subprocess.run(
+        [sys.executable, "-m", "examples.emotion_mirror.run", "--server", server],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert result.returncode == 1
+    assert f"cannot reach the SEGB server at {server}" in result.stderr
+    assert "segb serve" in result.stderr
+    assert result.stdout == ""
