@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from pyoxigraph import NamedNode, Quad, RdfFormat, serialize
 
 from backend.services.errors import ServiceError
+from backend.services.media_types import accepted_media_types
 from backend.services.namespaces import PREFIXES
 from backend.store.base import Store
 
@@ -48,21 +49,7 @@ def negotiate(accept: str | None) -> ExportFormat:
     """Pick the export format from an Accept header (q-values honoured; Turtle when anything goes)."""
     if not accept or not accept.strip():
         return EXPORT_FORMATS["text/turtle"]
-    offers = []
-    for position, part in enumerate(accept.split(",")):
-        media, *params = (piece.strip() for piece in part.split(";"))
-        quality = 1.0
-        for param in params:
-            name, _, value = param.partition("=")
-            if name.strip() == "q":
-                try:
-                    quality = float(value)
-                except ValueError:
-                    quality = 0.0
-        offers.append((-quality, position, media.lower()))
-    for negative_quality, _, media in sorted(offers):
-        if negative_quality == 0:
-            break
+    for media in accepted_media_types(accept):
         if media in EXPORT_FORMATS:
             return EXPORT_FORMATS[media]
         if media in ("*/*", "text/*", "application/*"):

@@ -14,6 +14,7 @@ import httpx
 from tests.cli.test_cli import clean_env, segb, wait_for
 from tests.support.live_server import LiveServer
 from tests.support.net import free_port
+from tests.support.sparql import select_bindings
 
 REPORTS = ["participants", "ml-usage", "emotion-timeline", "extreme-emotions", "conversations", "robot-states"]
 # Shared events that activities of two different robots are about.
@@ -49,12 +50,7 @@ def test_segb_demo_fills_every_report_once(memory_api: LiveServer) -> None:
     assert pairs == {("Maria", "ARI"), ("Maria", "TIAGo"), ("Carlos", "TIAGo")}
 
     # ARI and TIAGo heard Maria's first utterance as one shared event.
-    shared = httpx.get(
-        f"{memory_api.url}/sparql",
-        params={"query": SHARED_BY_TWO_ROBOTS},
-        headers={"Accept": "application/sparql-results+json"},
-        timeout=30,
-    ).json()["results"]["bindings"]
+    shared = select_bindings(memory_api.url, SHARED_BY_TWO_ROBOTS)
     assert len(shared) == 1
     assert shared[0]["event"]["value"].startswith("https://example.org/segb/shared-events/human_utterance_")
 

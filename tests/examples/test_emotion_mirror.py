@@ -16,6 +16,7 @@ from examples.emotion_mirror.mission import FALLBACK_REPLY
 from examples.emotion_mirror.script import Expression, Utterance, default_script
 from tests.support.live_server import LiveServer
 from tests.support.net import free_port
+from tests.support.sparql import select_bindings
 
 ROOT = Path(__file__).resolve().parents[2]
 SAMPLE_SCRIPT = ROOT / "examples" / "emotion_mirror" / "sample_script.json"
@@ -86,12 +87,7 @@ def test_the_default_script_fills_the_four_tutorial_reports(
     assert [row["time"] for row in conversation] == sorted(row["time"] for row in conversation)
 
     # Where each reply came from is logged as the `reply_source` parameter of the response activity.
-    sources = httpx.get(
-        f"{memory_api.url}/sparql",
-        params={"query": REPLY_SOURCES},
-        headers={"Accept": "application/sparql-results+json"},
-        timeout=30,
-    ).json()["results"]["bindings"]
+    sources = select_bindings(memory_api.url, REPLY_SOURCES)
     responses = {row["activity"] for row in usage if row["activityKind"] == "response"}
     assert {binding["activity"]["value"] for binding in sources} == responses
     assert [binding["source"]["value"] for binding in sources] == ["fallback"] * 4

@@ -25,6 +25,7 @@ from pyoxigraph import (
 from backend.api.deps import Auditor, LimitedBody, ServicesDep
 from backend.services.errors import InvalidParameter, ServiceError, UnsupportedMediaType
 from backend.services.export import NotAcceptable
+from backend.services.media_types import accepted_media_types
 from backend.services.namespaces import PREFIXES
 from backend.services.sparql_guard import MAX_QUERY_BYTES, CheckedQuery, guard_query, query_rejected
 from backend.store.base import QueryResult, Store
@@ -73,31 +74,13 @@ def negotiate(form: str, accept: str | None, format_name: str | None) -> ResultF
         return wanted
     if not accept or not accept.strip():
         return offered[0]
-    for media in _accepted(accept):
+    for media in accepted_media_types(accept):
         media = ALIASES.get(media, media)
         for fmt in offered:
             if media in (fmt.media_type, "*/*") or (media.endswith("/*") and fmt.media_type.startswith(media[:-1])):
                 return fmt
     choices = ", ".join(fmt.media_type for fmt in offered)
     raise NotAcceptable(f"Cannot answer a {form.upper()} query as any of '{accept}'; available: {choices}.")
-
-
-def _accepted(accept: str) -> list[str]:
-    """The media types of an Accept header, most wanted first (q=0 ones left out)."""
-    offers = []
-    for position, part in enumerate(accept.split(",")):
-        media, *params = (piece.strip() for piece in part.split(";"))
-        quality = 1.0
-        for param in params:
-            name, _, value = param.partition("=")
-            if name.strip().lower() == "q":
-                try:
-                    quality = float(value)
-                except ValueError:
-                    quality = 0.0
-        if quality > 0 and media:
-            offers.append((-quality, position, media.lower()))
-    return [media for _, _, media in sorted(offers)]
 
 
 def _results_bytes(result: QueryResult, fmt: ResultFormat) -> bytes:
