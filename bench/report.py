@@ -18,7 +18,7 @@ class Figures:
     robots: dict[str, ManyRobots] = field(default_factory=dict)
     cumulative: dict[str, Cumulative] = field(default_factory=dict)
     health_under_load: Latency | None = None
-    reports: dict[tuple[str, int], dict[str, tuple[Latency, int]]] = field(default_factory=dict)
+    reports: dict[tuple[str, int], dict[str, tuple[Latency, int, Latency]]] = field(default_factory=dict)
     peak_rss_mib: dict[int, float | None] = field(default_factory=dict)
     wall_seconds: float = 0.0
 
@@ -116,12 +116,23 @@ def _sections(f: Figures) -> list[str]:
                 ],
             )
     if any(f.reports.values()):
-        lines += ["### 4. Report queries (`GET /reports/{name}`, default parameters)", ""]
+        lines += [
+            "### 4. Report queries (`GET /reports/{name}`, default parameters, first page of up to 1,000 rows)",
+            "",
+            "Repeated requests are answered from the result cache on the embedded store (the cache is dropped",
+            "by every write); the last two columns are the first request after a write, i.e. the query itself.",
+            "Virtuoso has no cache (another writer could change it unseen), so both are the query.",
+            "",
+        ]
         rows = []
         for (store, size), reports in f.reports.items():
-            for name, (latency, count) in reports.items():
-                rows.append([store, f"{size:,}", name, str(count), f"{latency.p50:.1f}", f"{latency.p95:.1f}"])
-        lines += _table(["store", "triples", "report", "rows", "p50 ms", "p95 ms"], rows)
+            for name, (latency, count, fresh) in reports.items():
+                rows.append(
+                    [store, f"{size:,}", name, str(count), f"{latency.p50:.1f}", f"{latency.p95:.1f}",
+                     f"{fresh.p50:.1f}", f"{fresh.p95:.1f}"]
+                )  # fmt: skip
+        headers = ["store", "triples", "report", "rows", "p50 ms", "p95 ms", "after write p50", "after write p95"]
+        lines += _table(headers, rows)
     if f.health_under_load:
         h = f.health_under_load
         lines += ["### 5. Health under load (`/healthz/ready` while workload 3 runs on the embedded store)", ""]
@@ -176,15 +187,16 @@ def _targets(f: Figures) -> list[list[str]]:
         largest = max(size for _, size in f.reports)
         for (store, size), reports in f.reports.items():
             if size == largest and reports:
-                worst50 = max(latency.p50 for latency, _ in reports.values())
-                worst95 = max(latency.p95 for latency, _ in reports.values())
-                rows.append(
-                    [
-                        f"every report at {size:,} triples, {store}: p50 ≤ 50 ms, p95 ≤ 150 ms",
-                        f"worst p50 {worst50:.1f} ms, worst p95 {worst95:.1f} ms",
-                        _verdict(worst50 <= 50 and worst95 <= 150),
-                    ]
-                )
+                for kind, pick in (("repeated", 0), ("first after a write", 2)):
+                    worst50 = max(figures[pick].p50 for figures in reports.values())
+                    worst95 = max(figures[pick].p95 for figures in reports.values())
+                    rows.append(
+                        [
+                            f"every report at {size:,} triples, {store}, {kind}: p50 ≤ 50 ms, p95 ≤ 150 ms",
+                            f"worst p50 {worst50:.1f} ms, worst p95 {worst95:.1f} ms",
+                            _verdict(worst50 <= 50 and worst95 <= 150),
+                        ]
+                    )
     if f.health_under_load:
         rows.append(
             [

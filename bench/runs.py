@@ -147,8 +147,9 @@ def probe_health(url: str, stop: threading.Event, interval: float = 0.02) -> lis
     return seconds
 
 
-def report_queries(url: str, repeats: int, label: str) -> dict[str, tuple[Latency, int]]:
-    """Every report of `GET /reports`, run `repeats` times each: latency and row count."""
+def report_queries(url: str, repeats: int, label: str) -> dict[str, tuple[Latency, int, Latency]]:
+    """Every report of `GET /reports`: latency of repeated requests (served from the result cache where the
+    store has one), latency of the first request after a write, and the row count."""
     with httpx.Client(base_url=url, timeout=600) as client:
         listing = client.get("/reports")
         if listing.status_code != 200:
@@ -164,5 +165,15 @@ def report_queries(url: str, repeats: int, label: str) -> dict[str, tuple[Latenc
                 seconds.append(time.perf_counter() - begin)
                 answer.raise_for_status()
                 rows = len(answer.json()["rows"])
-            figures[name] = (Latency.of(seconds), rows)
+            after_write = []
+            for tick in range(max(3, repeats // 4)):
+                # One new, unrelated triple: the store changed, so nothing cached may answer.
+                triple = f'<urn:bench:tick> <urn:bench:{name}> "{tick}" .\n'
+                client.post(
+                    "/ttl", content=triple, headers={"Content-Type": "application/n-triples"}
+                ).raise_for_status()
+                begin = time.perf_counter()
+                client.get(f"/reports/{name}").raise_for_status()
+                after_write.append(time.perf_counter() - begin)
+            figures[name] = (Latency.of(seconds), rows, Latency.of(after_write))
     return figures

@@ -10,6 +10,7 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from datetime import datetime
 
 from pyoxigraph import Literal, NamedNode
 
@@ -36,7 +37,6 @@ PRODUCED = PREFIXES["segb"] + "producedEntityResult"
 HAS_EMOTION = PREFIXES["onyx"] + "hasEmotion"
 PERFORMED_BY = PREFIXES["segb"] + "wasPerformedBy"
 ATTRIBUTED_TO = PREFIXES["prov"] + "wasAttributedTo"
-SEGB = PREFIXES["segb"]
 PROV = PREFIXES["prov"]
 MAX_LABEL = 60
 MAX_NODES = 20_000
@@ -148,10 +148,11 @@ class KnowledgeGraph:
         return graph
 
     def _add_links(self, links: set[tuple[str, str, str]]) -> None:
-        # The client doubles most segb: links with a PROV copy; drawing both only doubles every arrow.
-        segb_pairs = {(s, o) for s, p, o in links if p.startswith(SEGB)}
+        # The client doubles most links with a PROV copy (segb:wasPerformedBy + prov:wasAssociatedWith,
+        # schema:sender + prov:wasAttributedTo, ...); drawing both only doubles every arrow.
+        primary_pairs = {(s, o) for s, p, o in links if not p.startswith(PROV)}
         for subject, predicate, target in sorted(links):
-            if predicate.startswith(PROV) and (subject, target) in segb_pairs:
+            if predicate.startswith(PROV) and (subject, target) in primary_pairs:
                 continue
             edge = Edge(subject, predicate, target)
             self.edges.append(edge)
@@ -338,14 +339,22 @@ def robot_neighbourhood(graph: KnowledgeGraph, robot: str) -> set[str]:
 
 
 def in_time_window(graph: KnowledgeGraph, since: str | None, until: str | None) -> set[str]:
-    """Timed nodes inside the window, and untimed nodes linked to one of them."""
-    timed = {
-        iri
-        for iri, node in graph.nodes.items()
-        if node.time and (since is None or node.time >= since) and (until is None or node.time <= until)
-    }
+    """Timed nodes inside the window, and untimed nodes linked to one of them. Times are compared as
+    instants, not strings: `…05.25Z` is after `…05Z` although `.` sorts before `Z`."""
+    start = _instant(since) if since else None
+    end = _instant(until) if until else None
+    timed = set()
+    for iri, node in graph.nodes.items():
+        if node.time:
+            moment = _instant(node.time)
+            if (start is None or moment >= start) and (end is None or moment <= end):
+                timed.add(iri)
     untimed = {n for iri in timed for n in graph.neighbours(iri) if graph.nodes[n].time is None}
     return timed | untimed
+
+
+def _instant(iso: str) -> datetime:
+    return datetime.fromisoformat(iso.replace("Z", "+00:00"))
 
 
 def parse_types(raw: str | None) -> tuple[str, ...]:

@@ -114,9 +114,11 @@ class Ledger:
         self._lock = threading.Lock()
         with self._lock:
             if path is not None:
-                # WAL with FULL sync: a receipt whose post was answered is on disk, even after a power cut.
+                # WAL with NORMAL sync: durable across a crash of the server, consistent after a power cut (which
+                # may lose the newest receipts, as it may the newest triples of the embedded store). FULL sync
+                # costs an fsync per post: small posts went from 5.7 to 7.4 ms p50.
                 self._connection.execute("PRAGMA journal_mode=WAL")
-                self._connection.execute("PRAGMA synchronous=FULL")
+                self._connection.execute("PRAGMA synchronous=NORMAL")
             self._connection.execute(SCHEMA)
 
     def append(

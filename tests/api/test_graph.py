@@ -1,0 +1,99 @@
+"""GET /graph, /resource and /explain on the lobby scenario, on the embedded store and on Virtuoso."""
+
+from __future__ import annotations
+
+import httpx
+import pytest
+
+from tests.support.live_server import LiveServer
+from tests.support.scenarios import lobby
+
+
+def get(server: LiveServer, path: str, **params: object) -> httpx.Response:
+    return httpx.get(f"{server.url}{path}", params=params, timeout=60)  # type: ignore[arg-type]
+
+
+def test_neighbourhood_of_a_human_holds_their_robot_and_messages(api: LiveServer) -> None:
+    scenario = lobby()
+    scenario.publish_all(api.url)
+    iris = {name: str(iri) for name, iri in scenario.iris.items()}
+    graph = get(api, "/graph", focus=iris["juan"], depth=3).json()
+    nodes = {node["id"]: node for node in graph["nodes"]}
+    assert nodes[iris["juan"]]["kind"] == "human" and nodes[iris["juan"]]["label"] == "Juan"
+    assert nodes[iris["juan_1"]]["kind"] == "message" and nodes[iris["juan_1"]]["label"] == "Where is the pharmacy?"
+    assert nodes[iris["tiago"]]["kind"] == "robot"  # three steps away: message, activity, robot
+    assert iris["maria"] not in nodes and iris["ari_1"] not in nodes  # nothing of the other conversation
+    assert graph["nodes"][0]["id"] == iris["juan"]  # the focus comes first
+    for edge in graph["edges"]:
+        assert edge["source"] in nodes and edge["target"] in nodes
+    sender = [e for e in graph["edges"] if e["source"] == iris["juan_1"] and e["target"] == iris["juan"]]
+    assert [e["label"] for e in sender] == ["sender"]  # the PROV copy of the link is not drawn twice
+
+
+def test_graph_filters_kinds_time_search_and_limit(api: LiveServer) -> None:
+    scenario = lobby()
+    scenario.publish_all(api.url)
+    people = get(api, "/graph", types="robot,human").json()
+    assert sorted(node["label"] for node in people["nodes"]) == ["ARI", "Juan", "Maria", "TIAGo"]
+    window = get(api, "/graph", since="2026-03-10T09:00:08Z", until="2026-03-10T09:00:10Z", types="message").json()
+    assert sorted(node["label"] for node in window["nodes"]) == ["Congratulations, Maria!", "Second floor, Juan."]
+    found = get(api, "/graph", q="pharmacy").json()
+    hits = {(n["kind"], n["label"]) for n in found["nodes"] if n["id"] in found["matches"]}
+    assert hits == {("message", "Where is the pharmacy?"), ("shared-event", "Where is the pharmacy?")}
+    small = get(api, "/graph", limit=5).json()
+    assert len(small["nodes"]) == 5 and small["truncated"] is True
+    assert [node["kind"] for node in small["nodes"]][:2] == ["robot", "robot"]  # robots and humans first
+    assert small["total_nodes"] > 5
+
+
+def test_resource_lists_triples_both_ways_with_labels(api: LiveServer) -> None:
+    scenario = lobby()
+    scenario.publish_all(api.url)
+    body = get(api, "/resource", iri=str(scenario.iris["maria_1"])).json()
+    assert body["kind"] == "message" and body["label"] == "I passed my driving test today!"
+    out = {(s["predicate_label"], s.get("label") or s["value"]) for s in body["outgoing"]}
+    assert ("schema:sender", "Maria") in out and ("schema:text", "I passed my driving test today!") in out
+    text = next(s for s in body["outgoing"] if s["predicate_label"] == "schema:text")
+    assert text["is_literal"] and text["language"] == "en"
+    incoming = {(s["predicate_label"], s["value"]) for s in body["incoming"]}
+    assert ("prov:wasDerivedFrom", str(scenario.iris["ari_1"])) in incoming
+
+
+def test_explain_a_reply_gives_what_was_heard_the_models_and_the_trigger_in_order(api: LiveServer) -> None:
+    scenario = lobby()
+    scenario.publish_all(api.url)
+    iris = {name: str(iri) for name, iri in scenario.iris.items()}
+    story = get(api, "/explain", iri=iris["ari_1"]).json()
+    steps = story["steps"]
+    assert [step["activity"] for step in steps] == [
+        iris["listen_maria_1"], iris["emotion_maria_1"], iris["reply_maria_1"], iris["listen_maria_2"]
+    ]  # fmt: skip
+    assert [step["role"] for step in steps] == ["cause", "cause", "seed", "effect"]
+    heard, analysed, reply = steps[0], steps[1], steps[2]
+    assert heard["heard"][0]["text"] == "I passed my driving test today!"
+    assert heard["heard"][0]["sender"]["label"] == "Maria"
+    assert heard["events"][0]["modalities"] == ["speech"]
+    assert [(m["label"], m["version"]) for m in analysed["models"]] == [("Emotion Big6 CNN", "1.0")]
+    assert analysed["emotions"][0]["category"] == "happiness"
+    assert analysed["emotions"][0]["intensity"] == pytest.approx(0.9)
+    assert set(reply["triggered_by"]) == {iris["emotion_maria_1"], iris["listen_maria_1"]}
+    assert reply["said"][0]["text"] == "Congratulations, Maria!" and reply["robot"]["label"] == "ARI"
+
+
+@pytest.mark.parametrize(
+    ("path", "params", "status", "named"),
+    [
+        ("/graph", {"focus": "not an iri"}, 422, "focus"),
+        ("/graph", {"since": "yesterday"}, 422, "since"),
+        ("/graph", {"types": "robots"}, 422, "types"),
+        ("/graph", {"limit": "0"}, 422, "limit"),
+        ("/resource", {}, 422, "iri"),
+        ("/explain", {"iri": "https://example.org/nothing-here"}, 404, "Nothing is known"),
+    ],
+)
+def test_bad_graph_requests_name_the_problem(
+    memory_api: LiveServer, path: str, params: dict, status: int, named: str
+) -> None:
+    response = get(memory_api, path, **params)
+    assert response.status_code == status
+    assert named in response.text
