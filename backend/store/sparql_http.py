@@ -8,7 +8,7 @@ from collections.abc import Iterator, Sequence
 from itertools import islice
 
 import httpx
-from pyoxigraph import QueryResultsFormat, RdfFormat, parse, parse_query_results
+from pyoxigraph import QueryResultsFormat, QuerySolutions, RdfFormat, parse, parse_query_results
 
 from backend.store.base import Bindings, Quad, QueryResult, StoreError, StoreRejectedQuery, StoreUnavailable
 from backend.store.known_triples import KnownTriples, triple_key
@@ -142,7 +142,14 @@ class SparqlHttpStore:
                 quad.triple
                 for quad in parse(response.content, RdfFormat.N_TRIPLES)  # type: ignore[union-attr]
             )
-        return parse_query_results(response.content, QueryResultsFormat.JSON)
+        result = parse_query_results(response.content, QueryResultsFormat.JSON)
+        if form == "ask" and isinstance(result, QuerySolutions):
+            # Virtuoso 7 answers ASK as a one-column SELECT (`__ASK_RETVAL`), one row when the answer is true.
+            truth = any(getattr(row[0], "value", "1") not in ("0", "false") for row in result)
+            return parse_query_results(
+                b'{"head":{},"boolean":%s}' % str(truth).lower().encode(), QueryResultsFormat.JSON
+            )
+        return result
 
     def _query_params(self, sparql: str, dataset: bool) -> dict[str, str]:
         params = {"query": sparql}
