@@ -69,15 +69,6 @@ def load_demo(settings: Settings, store: Store) -> IngestResult | None:
     services = build_services(settings, store)
     try:
         result = services.ingest.ingest(payload, actor=DEMO_USER)
-        services.ledger.append(
-            action="ingest",
-            log_id=result.log_id,
-            user=DEMO_USER,
-            claimed_user=DEMO_USER,
-            payload=payload.data,
-            triples_received=result.triples_received,
-            triples_new=result.triples_new,
-        )
     finally:
         services.ledger.close()
     logger.info(

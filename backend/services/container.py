@@ -32,6 +32,8 @@ def build_services(settings: Settings, store: Store) -> Services:
     version = DataVersion()
     cache = ResultCache(version, enabled=store.kind in OWNED_STORES)
     graph = GraphService(catalog, store, cache)
+    # A memory store keeps its ledger in memory too: nothing of such a server is meant to be written.
+    ledger = Ledger(None if settings.store == "memory" else settings.data_dir / LEDGER_FILE)
     return Services(
         settings=settings,
         store=store,
@@ -44,7 +46,7 @@ def build_services(settings: Settings, store: Store) -> Services:
             skolem_base=settings.effective_skolem_base,
             max_triples=settings.max_triples_per_post,
             version=version,
+            ledger=ledger,
         ),
-        # A memory store keeps its ledger in memory too: nothing of such a server is meant to be written.
-        ledger=Ledger(None if settings.store == "memory" else settings.data_dir / LEDGER_FILE),
+        ledger=ledger,
     )

@@ -7,6 +7,7 @@ import time
 import uuid
 from dataclasses import dataclass
 
+from backend.services.ledger import Ledger
 from backend.services.payloads import RdfPayload
 from backend.services.rdf_parsing import parse_triples
 from backend.services.result_cache import DataVersion
@@ -25,12 +26,32 @@ class IngestResult:
     duration_ms: float
 
 
+@dataclass(frozen=True)
+class ClearResult:
+    """What one clearing of the events graph did."""
+
+    log_id: str
+    triples_removed: int
+
+
 class IngestService:
     """Idempotent ingest: the client re-sends its whole graph every time, so the work that grows with the
-    store (finding what is new) is a per-triple membership test, and only new triples are written."""
+    store (finding what is new) is a per-triple membership test, and only new triples are written.
 
-    def __init__(self, store: Store, *, skolem_base: str, max_triples: int, version: DataVersion | None = None) -> None:
+    With a ledger, every accepted post and every clearing leaves a receipt there, whoever calls (the API,
+    the demo loader), so no write path can skip it."""
+
+    def __init__(
+        self,
+        store: Store,
+        *,
+        skolem_base: str,
+        max_triples: int,
+        version: DataVersion | None = None,
+        ledger: Ledger | None = None,
+    ) -> None:
         self._store = store
+        self._ledger = ledger
         self._skolem_base = skolem_base
         self._max_triples = max_triples
         self._version = version or DataVersion()
@@ -59,10 +80,30 @@ class IngestService:
             result.triples_new,
             result.duration_ms,
         )
+        if self._ledger is not None:
+            self._ledger.append(
+                action="ingest",
+                log_id=result.log_id,
+                user=actor,
+                claimed_user=payload.claimed_user,
+                payload=payload.data,
+                triples_received=result.triples_received,
+                triples_new=result.triples_new,
+            )
         return result
 
-    def delete_all(self, *, actor: str) -> int:
+    def delete_all(self, *, actor: str, claimed_user: str | None = None) -> ClearResult:
         removed = self._store.clear()
         self._version.bump()
-        logger.warning("delete_all actor=%s removed=%d", actor, removed)
-        return removed
+        result = ClearResult(log_id=str(uuid.uuid4()), triples_removed=removed)
+        logger.warning("delete_all log_id=%s actor=%s removed=%d", result.log_id, actor, removed)
+        if self._ledger is not None:
+            self._ledger.append(
+                action="delete_all",
+                log_id=result.log_id,
+                user=actor,
+                claimed_user=claimed_user,
+                payload=b"",  # no RDF is received: the receipt carries the SHA-256 of the empty payload
+                triples_removed=removed,
+            )
+        return result

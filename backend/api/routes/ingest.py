@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import uuid
-
 from fastapi import APIRouter, Request
 from fastapi.concurrency import run_in_threadpool
 from pydantic import BaseModel, Field
@@ -69,15 +67,6 @@ async def publish(
             max_decompressed_bytes=services.settings.max_decompressed_bytes,
         )
         result = services.ingest.ingest(payload, actor=principal.username)
-        services.ledger.append(
-            action="ingest",
-            log_id=result.log_id,
-            user=principal.username,
-            claimed_user=payload.claimed_user,
-            payload=payload.data,
-            triples_received=result.triples_received,
-            triples_new=result.triples_new,
-        )
         return result, payload.claimed_user
 
     result, claimed = await run_in_threadpool(work)
@@ -99,16 +88,9 @@ async def publish(
 )
 def delete_all(services: ServicesDep, principal: Admin, body: DeleteAllRequest | None = None) -> DeleteAllResponse:
     # A plain `def` route runs in the thread pool, so the ledger's SQLite write stays off the event loop.
-    removed = services.ingest.delete_all(actor=principal.username)
-    log_id = str(uuid.uuid4())
-    services.ledger.append(
-        action="delete_all",
-        log_id=log_id,
-        user=principal.username,
-        claimed_user=body.user if body else None,
-        payload=b"",  # no RDF is received: the receipt carries the SHA-256 of the empty payload
-        triples_removed=removed,
-    )
+    cleared = services.ingest.delete_all(actor=principal.username, claimed_user=body.user if body else None)
     return DeleteAllResponse(
-        message="Graph cleared." if removed else "No TTLs to delete", log_id=log_id, triples_removed=removed
+        message="Graph cleared." if cleared.triples_removed else "No TTLs to delete",
+        log_id=cleared.log_id,
+        triples_removed=cleared.triples_removed,
     )
