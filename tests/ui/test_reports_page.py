@@ -109,3 +109,11 @@ def test_a_bad_filter_is_explained_on_the_page(ui_stack: UiStack) -> None:
     answer = httpx.get(f"{ui_stack.ui_url}/reports", params={"robot": "ari"})
     assert answer.status_code == 422
     assert "robot" in answer.text and "absolute IRI" in answer.text
+
+
+def test_a_time_picked_without_zone_is_read_as_utc(ui_stack: UiStack) -> None:
+    publish_lobby_with_hostile_text(ui_stack.api_url)
+    # What a datetime-local input submits: no zone. The page labels times as UTC.
+    answer = httpx.get(f"{ui_stack.ui_url}/reports/emotion-timeline", params={"since": "2026-03-10T09:00:07"})
+    assert answer.status_code == 200
+    assert "Juan" in answer.text and "Maria" not in answer.text.split('id="report-emotion-timeline"')[1]

@@ -10,23 +10,21 @@ from __future__ import annotations
 from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse, Response
 
+from backend.services.kinds import KINDS
 from ui.choices import participant_choices
 from ui.pages import backend, render, token
-from ui.routes.reports import report_filters
+from ui.query_params import query_values
 
 router = APIRouter()
 
 GRAPH_PARAMETERS = ("limit", "robot", "since", "until", "types", "focus", "depth", "q")
-KIND_LEGEND = ["robot", "human", "shared-event", "activity", "message", "emotion", "state", "model", "other"]
 
 
 def graph_parameters(request: Request) -> dict[str, str]:
-    values = {name: request.query_params.get(name, "").strip() for name in GRAPH_PARAMETERS}
-    times = report_filters(request)  # adds the zone a browser time picker leaves out
-    values.update({name: times.get(name, "") for name in ("since", "until")})
+    values = query_values(request, GRAPH_PARAMETERS)
     if request.query_params.getlist("kind"):
         values["types"] = ",".join(request.query_params.getlist("kind"))
-    return {name: value for name, value in values.items() if value}
+    return values
 
 
 @router.get("/kg-graph", response_class=HTMLResponse)
@@ -41,7 +39,7 @@ async def graph_page(request: Request) -> HTMLResponse:
             "parameters": parameters,
             "chosen_kinds": set(request.query_params.getlist("kind")),
             "choices": choices,
-            "kinds": KIND_LEGEND,
+            "kinds": KINDS,
             "data_src": "/kg-graph/data" + (f"?{data_query}" if data_query else ""),
         },
     )

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import asyncio
-import re
 from typing import Any
 
 from fastapi import APIRouter, Request
@@ -11,6 +10,7 @@ from fastapi.responses import HTMLResponse, Response
 
 from ui.choices import participant_choices
 from ui.pages import backend, render, token
+from ui.query_params import query_values
 from ui.report_views import OVERVIEW_ORDER, view_of
 
 router = APIRouter()
@@ -18,17 +18,10 @@ router = APIRouter()
 FILTER_NAMES = ("robot", "human", "since", "until", "threshold")
 OVERVIEW_ROWS = 200
 PAGE_ROWS = 500
-_HAS_ZONE = re.compile(r"(Z|[+-]\d\d:?\d\d)$")
 
 
 def report_filters(request: Request) -> dict[str, str]:
-    """The filters of the query string, as the API wants them. A time picked in the browser has no zone:
-    the page labels times as UTC, so it gets one."""
-    filters = {name: request.query_params.get(name, "").strip() for name in FILTER_NAMES}
-    for name in ("since", "until"):
-        if filters[name] and not _HAS_ZONE.search(filters[name]):
-            filters[name] += "Z"
-    return {name: value for name, value in filters.items() if value}
+    return query_values(request, FILTER_NAMES)
 
 
 def _paging(request: Request, default_limit: int) -> tuple[int, int]:
