@@ -1,0 +1,147 @@
+"""Every API route against every kind of caller, with authentication on, over real HTTP.
+
+The route list comes from the running app's OpenAPI description, so a new route without an entry in
+`REQUIRED_ROLE` fails here until someone decides who may call it.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+
+import httpx
+import jwt
+import pytest
+
+from backend.api.app import create_app
+from backend.services.tokens import mint_token
+from tests.conftest import make_settings
+from tests.support.live_server import LiveServer
+
+SECRET = "a-test-secret-that-is-long-enough-for-hs256"
+PUBLIC = None
+ANY_TOKEN = "any"
+# (method, path) → the role it needs; PUBLIC needs nothing, ANY_TOKEN any valid token.
+REQUIRED_ROLE: dict[tuple[str, str], str | None] = {
+    ("GET", "/healthz/live"): PUBLIC,
+    ("GET", "/healthz/ready"): PUBLIC,
+    ("GET", "/auth/mode"): PUBLIC,
+    ("GET", "/auth/whoami"): ANY_TOKEN,
+    ("POST", "/ttl"): "logger",
+    ("POST", "/ttl/delete_all"): "admin",
+    ("GET", "/events"): "auditor",
+    ("GET", "/reports"): "auditor",
+    ("GET", "/reports/{name}"): "auditor",
+    ("GET", "/graph"): "auditor",
+    ("GET", "/resource"): "auditor",
+    ("GET", "/explain"): "auditor",
+    ("GET", "/sparql"): "auditor",
+    ("POST", "/sparql"): "auditor",
+    ("GET", "/query"): "auditor",
+    ("POST", "/query/validate"): "auditor",
+    ("GET", "/ledger"): "auditor",
+    ("GET", "/ledger/verify"): "auditor",
+}
+# A well-formed request for each route, so an authorised caller is served (a 404 from /explain once the
+# graph has been cleared is an answer, not a refusal).
+IRI = "https://example.org/segb/robots/ari/v1/robot_ari"
+REQUESTS: dict[tuple[str, str], dict[str, object]] = {
+    ("POST", "/ttl"): {"json": {"ttl_content": f"<{IRI}> a <http://kb.openrobots.org#Robot> .", "user": "ari"}},
+    ("POST", "/ttl/delete_all"): {"json": {"user": "admin"}},
+    ("GET", "/reports/{name}"): {"path": "/reports/participants"},
+    ("GET", "/resource"): {"params": {"iri": IRI}},
+    ("GET", "/explain"): {"params": {"iri": IRI}},
+    ("GET", "/sparql"): {"params": {"query": "ASK { ?s ?p ?o }"}},
+    ("POST", "/sparql"): {"content": "ASK { ?s ?p ?o }", "headers": {"Content-Type": "application/sparql-query"}},
+    ("GET", "/query"): {"params": {"query": "SELECT * WHERE { ?s ?p ?o } LIMIT 1"}},
+    ("POST", "/query/validate"): {"json": {"query": "SELECT * WHERE { ?s ?p ?o }"}},
+}
+
+
+@pytest.fixture(scope="module")
+def server() -> Iterator[LiveServer]:
+    with LiveServer(create_app(make_settings(secret_key=SECRET))) as live:
+        yield live
+
+
+def token(*roles: str, secret: str = SECRET, expires_in: int = 600) -> str:
+    return mint_token(secret, username="tester", roles=roles, expires_in=expires_in).token
+
+
+def call(server: LiveServer, route: tuple[str, str], bearer: str | None) -> httpx.Response:
+    method, path = route
+    spec = dict(REQUESTS.get(route, {}))
+    url = server.url + str(spec.pop("path", path))
+    headers = dict(spec.pop("headers", {}))  # type: ignore[call-overload]
+    if bearer is not None:
+        headers["Authorization"] = f"Bearer {bearer}"
+    return httpx.request(method, url, headers=headers, timeout=30, **spec)  # type: ignore[arg-type]
+
+
+def served(answer: httpx.Response) -> bool:
+    return answer.status_code < 400 or (answer.status_code == 404 and answer.json()["error"] == "not_found")
+
+
+def test_every_route_has_a_decided_role(server: LiveServer) -> None:
+    paths = httpx.get(f"{server.url}/openapi.json").json()["paths"]
+    routes = {(method.upper(), path) for path, operations in paths.items() for method in operations}
+    assert routes == set(REQUIRED_ROLE)
+
+
+BAD_TOKENS = {
+    "no token": None,
+    "expired": lambda: mint_token(SECRET, username="t", roles=["admin"], now=time.time() - 7200, expires_in=60).token,
+    "bad signature": lambda: token("admin", secret="another-secret-that-is-also-long-enough-x"),
+    "alg none": lambda: jwt.encode(
+        {"username": "t", "roles": ["admin"], "exp": int(time.time()) + 600}, key=None, algorithm="none"
+    ),
+    "garbage": lambda: "not.a.token",
+}
+
+
+@pytest.mark.parametrize("route", sorted(REQUIRED_ROLE), ids=lambda r: f"{r[0]} {r[1]}")
+@pytest.mark.parametrize("kind", sorted(BAD_TOKENS))
+def test_protected_routes_refuse_callers_without_a_valid_token(server: LiveServer, route, kind: str) -> None:  # type: ignore[no-untyped-def]
+    make = BAD_TOKENS[kind]
+    answer = call(server, route, make() if make else None)
+    if REQUIRED_ROLE[route] is PUBLIC:
+        assert served(answer), answer.text
+    else:
+        assert answer.status_code == 401, answer.text
+        assert answer.headers["www-authenticate"].startswith("Bearer")
+        assert answer.json()["status"] == 401
+
+
+@pytest.mark.parametrize("route", sorted(REQUIRED_ROLE), ids=lambda r: f"{r[0]} {r[1]}")
+@pytest.mark.parametrize("role", ["logger", "auditor", "admin"])
+def test_each_role_gets_exactly_its_routes(server: LiveServer, route, role: str) -> None:  # type: ignore[no-untyped-def]
+    needed = REQUIRED_ROLE[route]
+    allowed = needed in (PUBLIC, ANY_TOKEN) or role in (needed, "admin")
+    answer = call(server, route, token(role))
+    if allowed:
+        assert served(answer), answer.text
+    else:
+        assert answer.status_code == 403, answer.text
+        assert answer.json()["detail"] == "User does not have permission to perform this action"  # the reference's
+
+
+def test_with_auth_off_every_route_is_open(memory_api: LiveServer) -> None:
+    for route in REQUIRED_ROLE:
+        assert served(call(memory_api, route, None)), route
+
+
+def test_the_pypi_client_publishes_with_a_logger_token_and_is_refused_without(server: LiveServer) -> None:
+    from semantic_log_generator import SEGBPublisher
+
+    from tests.support.scenarios import lobby
+
+    scenario = lobby()
+    scenario.run_steps()
+    ari = scenario.loggers["ari"]
+    with pytest.raises(RuntimeError, match="HTTP 401"):
+        ari.publish(SEGBPublisher(base_url=server.url))
+    with pytest.raises(RuntimeError, match="HTTP 403"):
+        ari.publish(SEGBPublisher(base_url=server.url, token=token("auditor")))
+    answer = ari.publish(SEGBPublisher(base_url=server.url, token=token("logger"), default_user="admin"))
+    assert answer["user"] == "tester" and answer["claimed_user"] == "admin"  # a claim cannot impersonate
+    assert answer["triples_received"] == len(ari.graph)
