@@ -11,6 +11,7 @@ from fastapi.middleware.cors import CORSMiddleware
 
 from backend import __version__
 from backend.api.errors import install_error_handlers
+from backend.api.request_context import RequestContext
 from backend.api.routes import auth, events, graph, health, ingest, ledger, reports, sparql
 from backend.config import Settings
 from backend.services.container import build_services
@@ -72,7 +73,9 @@ def create_app(settings: Settings | None = None, store: Store | None = None) -> 
             allow_origins=settings.cors_origin_list,
             allow_methods=["GET", "POST"],
             allow_headers=["Authorization", "Content-Type", "Content-Encoding", "X-Request-ID"],
+            expose_headers=["X-Request-ID"],
         )
+    app.add_middleware(RequestContext)  # added last, so it is outermost: every answer carries the id
     for router in ROUTERS:
         app.include_router(router)
     return app
