@@ -10,7 +10,7 @@ from fastapi import FastAPI
 from fastapi.middleware.cors import CORSMiddleware
 
 from backend import __version__
-from backend.api.errors import install_error_handlers
+from backend.api.errors import document_error_shape, install_error_handlers
 from backend.api.request_context import RequestContext
 from backend.api.routes import auth, events, graph, health, ingest, ledger, reports, sparql
 from backend.config import Settings
@@ -67,6 +67,7 @@ def create_app(settings: Settings | None = None, store: Store | None = None) -> 
         license_info={"name": "Apache-2.0"},
     )
     install_error_handlers(app)
+    document_error_shape(app)
     if settings.cors_origin_list:
         app.add_middleware(
             CORSMiddleware,

@@ -87,3 +87,38 @@ def install_error_handlers(app: FastAPI) -> None:
     app.add_exception_handler(RequestValidationError, _validation_error)  # type: ignore[arg-type]
     app.add_exception_handler(StarletteHTTPException, _http_error)  # type: ignore[arg-type]
     app.add_exception_handler(Exception, _unexpected_error)
+
+
+ERROR_SCHEMA = {
+    "title": "Error",
+    "type": "object",
+    "required": ["detail", "error", "status"],
+    "properties": {
+        "detail": {
+            "anyOf": [{"type": "string"}, {"type": "array", "items": {"type": "object"}}],
+            "description": "What went wrong, for people; a list of problems for an invalid request.",
+        },
+        "error": {"type": "string", "description": "A stable machine-readable code."},
+        "status": {"type": "integer"},
+        "message": {"type": "string"},
+        "line": {"type": ["integer", "null"]},
+        "column": {"type": ["integer", "null"]},
+    },
+    "additionalProperties": True,
+}
+
+
+def document_error_shape(app: FastAPI) -> None:
+    """Make the OpenAPI description say what errors really look like: FastAPI documents its own 422 body
+    (`HTTPValidationError`), which the handlers above replace with the one error shape."""
+    generate = app.openapi
+
+    def openapi() -> dict[str, object]:
+        if app.openapi_schema is None:
+            schema = generate()
+            schemas = schema.setdefault("components", {}).setdefault("schemas", {})  # type: ignore[union-attr]
+            schemas["HTTPValidationError"] = ERROR_SCHEMA
+            app.openapi_schema = schema
+        return app.openapi_schema
+
+    app.openapi = openapi  # type: ignore[method-assign]

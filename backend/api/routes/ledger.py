@@ -10,6 +10,7 @@ from fastapi.concurrency import run_in_threadpool
 from pydantic import BaseModel, Field
 
 from backend.api.deps import Auditor, ServicesDep
+from backend.api.paging import Offset
 
 router = APIRouter(tags=["ledger"])
 
@@ -65,7 +66,7 @@ async def list_receipts(
     services: ServicesDep,
     principal: Auditor,
     limit: Annotated[int, Query(ge=1, le=MAX_LIMIT)] = 100,
-    offset: Annotated[int, Query(ge=0)] = 0,
+    offset: Offset = 0,
 ) -> LedgerPage:
     receipts, total = await run_in_threadpool(services.ledger.page, limit, offset)
     return LedgerPage(

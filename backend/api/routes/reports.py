@@ -9,6 +9,7 @@ from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import JSONResponse, Response
 
 from backend.api.deps import Auditor, ServicesDep
+from backend.api.paging import Offset
 from backend.services.catalog import CatalogQuery
 from backend.services.errors import InvalidParameter
 from backend.services.reports import short_name
@@ -59,7 +60,7 @@ async def run_report(
     since: Annotated[str | None, Query(description="ISO 8601 time with zone, inclusive")] = None,
     until: Annotated[str | None, Query(description="ISO 8601 time with zone, inclusive")] = None,
     limit: Annotated[int, Query(ge=1, le=MAX_LIMIT)] = 1000,
-    offset: Annotated[int, Query(ge=0)] = 0,
+    offset: Offset = 0,
     format: Annotated[str | None, Query(description="json or csv; overrides Accept")] = None,
 ) -> Response:
     if format not in (None, "json", "csv"):
