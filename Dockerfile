@@ -1,17 +1,21 @@
 # syntax=docker/dockerfile:1
 # One image for the SEGB API and UI (compose runs it twice with different commands).
+# Both stages use the same base, so the virtual environment built in the first runs unchanged in the second.
+ARG PYTHON_IMAGE=python:3.11-slim
 
-FROM python:3.11-slim AS build
+FROM ${PYTHON_IMAGE} AS build
 ENV PIP_NO_CACHE_DIR=1 PIP_DISABLE_PIP_VERSION_CHECK=1
 WORKDIR /src
+# Dependencies first (pinned with hashes), so code changes do not reinstall them.
 COPY requirements.lock ./
 RUN python -m venv /venv && /venv/bin/pip install --require-hashes -r requirements.lock
 COPY pyproject.toml README.md ./
 COPY backend backend
 COPY ui ui
+COPY examples examples
 RUN /venv/bin/pip install --no-deps .
 
-FROM python:3.11-slim
+FROM ${PYTHON_IMAGE}
 RUN useradd --create-home --uid 10001 segb && mkdir /data && chown segb /data
 COPY --from=build /venv /venv
 COPY sparql /app/sparql
@@ -24,6 +28,7 @@ WORKDIR /app
 USER segb
 EXPOSE 5000 8080
 VOLUME ["/data"]
-HEALTHCHECK --interval=10s --timeout=3s --start-period=10s --retries=5 \
+# The API's readiness (the store answers); compose gives the UI container a check of its own port.
+HEALTHCHECK --interval=5s --timeout=3s --start-period=30s --retries=3 \
   CMD ["python", "-c", "import sys, urllib.request; sys.exit(urllib.request.urlopen('http://127.0.0.1:5000/healthz/ready', timeout=2).status != 200)"]
 CMD ["segb", "serve"]

@@ -101,6 +101,8 @@ def _settings(args: argparse.Namespace, *names: str) -> Settings:
 def _serve(args: argparse.Namespace) -> int:
     settings = _settings(args, "host", "api_port", "ui_port", "backend_url")
     logging.basicConfig(level=settings.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    # httpx logs every request at INFO; the store monitor and the UI make many, and the API logs its own.
+    logging.getLogger("httpx").setLevel(max(logging.WARNING, logging.getLevelName(settings.log_level)))
     from backend.api.app import create_app
     from ui.app import create_ui_app
 
@@ -109,14 +111,19 @@ def _serve(args: argparse.Namespace) -> int:
     store = _demo_store(settings) if args.demo else None
     configs = []
     if args.only in (None, "api"):
-        configs.append(uvicorn.Config(create_app(settings, store=store), host=settings.host, port=settings.api_port))
+        # No uvicorn access log: the API logs one line per request itself (backend/api/request_context.py).
+        api = create_app(settings, store=store)
+        configs.append(uvicorn.Config(api, host=settings.host, port=settings.api_port, access_log=False))
     if args.only in (None, "ui"):
         configs.append(uvicorn.Config(create_ui_app(settings), host=settings.host, port=settings.ui_port))
-    if args.only is None:
+    if args.only in (None, "api"):
         print(f"SEGB API  http://{settings.host}:{settings.api_port}/docs", file=sys.stderr)
-    print(f"SEGB UI   http://{settings.host}:{settings.ui_port}/reports", file=sys.stderr)
+    if args.only in (None, "ui"):
+        print(f"SEGB UI   http://{settings.host}:{settings.ui_port}/reports", file=sys.stderr)
     try:
-        asyncio.run(_serve_together([_QuietServer(config) for config in configs]))
+        # uvicorn's own choice of loop (uvloop when installed), which `asyncio.run` would bypass.
+        with asyncio.Runner(loop_factory=configs[0].get_loop_factory()) as runner:
+            runner.run(_serve_together([_QuietServer(config) for config in configs]))
     finally:
         if store is not None:
             store.close()

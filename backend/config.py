@@ -43,6 +43,12 @@ class Settings(BaseSettings):
     sparql_password: str = Field("", description="Generic store: HTTP basic-auth password.")
     store_timeout_seconds: float = Field(30.0, gt=0, description="Timeout of one request to a remote store.")
     ping_timeout_seconds: float = Field(1.0, gt=0, description="Timeout of the readiness ping to the store.")
+    store_retry_max_seconds: float = Field(
+        30.0, gt=0, description="Longest wait between retries while the store does not answer (0.5 s doubling)."
+    )
+    store_check_seconds: float = Field(
+        15.0, gt=0, description="Interval of the background check once the store answers (logs lost/back)."
+    )
     skolem_base: str = Field(
         "",
         description="IRI prefix for skolemised blank nodes; empty = <graph authority>/.well-known/genid/.",
@@ -54,6 +60,12 @@ class Settings(BaseSettings):
         256 * 1024 * 1024, gt=0, description="Largest gzip-decompressed request body (bytes)."
     )
     max_triples_per_post: int = Field(2_000_000, gt=0, description="Most triples accepted in one post.")
+    sparql_timeout_seconds: float = Field(
+        30.0, gt=0, description="Longest run of one user SPARQL query (/sparql, /query) before a 503 query_timeout."
+    )
+    sparql_max_rows: int = Field(
+        100_000, gt=0, description="Most rows (or triples) one user SPARQL answer holds; more are cut off."
+    )
 
     # --- HTTP servers ------------------------------------------------------------------------------------
     host: str = Field("127.0.0.1", description="Interface the API and UI listen on.")
@@ -69,11 +81,38 @@ class Settings(BaseSettings):
     secret_key: str = Field("", description="HS256 secret for JWTs; empty = authentication disabled.")
     allow_weak_secret: bool = Field(False, description="Start even when SECRET_KEY is shorter than 32 chars.")
 
+    # --- shared context ----------------------------------------------------------------------------------
+    shared_context_namespace: str = Field(
+        "https://gsi.upm.es/segb/shared-events/", description="Namespace of the shared-context URIs the server mints."
+    )
+    shared_context_time_window_seconds: float = Field(
+        3.0, gt=0, description="Observations further apart than this score 0 on time (candidates within 2x)."
+    )
+    shared_context_match_threshold: float = Field(
+        0.85, ge=0, le=1, description="Score from which an observation joins an existing shared context."
+    )
+    shared_context_ambiguous_threshold: float = Field(
+        0.70, ge=0, le=1, description="Score from which a non-matching observation opens a review (ambiguous)."
+    )
+    shared_context_close_margin: float = Field(
+        0.05, ge=0, le=1, description="Lead the best candidate needs over the second to match without review."
+    )
+    shared_context_strict_modality_mismatch: bool = Field(
+        False, description="Never match observations whose modalities differ."
+    )
+
     # --- operations --------------------------------------------------------------------------------------
     log_level: str = Field("INFO", validation_alias="LOGGING_LEVEL", description="Log level (LOGGING_LEVEL).")
     sparql_dir: Path = Field(PROJECT_ROOT / "sparql", description="Directory of the .rq query files.")
+    server_log_file: str = Field(
+        "", description="JSON-lines server log; empty = DATA_DIR/logs/server.jsonl (in memory with STORE=memory)."
+    )
+    server_log_max_bytes: int = Field(
+        10 * 1024 * 1024, gt=0, description="Size at which the server log file is rotated."
+    )
+    server_log_backups: int = Field(3, ge=0, description="Rotated server log files kept (server.jsonl.1, .2, …).")
 
-    @field_validator("graph_uri", "virtuoso_endpoint")
+    @field_validator("graph_uri", "virtuoso_endpoint", "shared_context_namespace")
     @classmethod
     def _absolute_http_iri(cls, value: str) -> str:
         if not value.startswith(("http://", "https://")):
@@ -112,6 +151,13 @@ class Settings(BaseSettings):
         scheme, _, rest = self.graph_uri.partition("://")
         authority = rest.split("/", 1)[0]
         return f"{scheme}://{authority}/.well-known/genid/"
+
+    @property
+    def effective_server_log_file(self) -> Path | None:
+        """Where the server log is written; None = kept in memory only (a throwaway STORE=memory server)."""
+        if self.server_log_file:
+            return Path(self.server_log_file)
+        return None if self.store == "memory" else self.data_dir / "logs" / "server.jsonl"
 
     @property
     def cors_origin_list(self) -> list[str]:

@@ -64,6 +64,8 @@ def machine() -> dict[str, str]:
         "os": f"{platform.system()} {platform.release()}",
         "python": platform.python_version(),
         "pyoxigraph": pyoxigraph.__version__,
+        # The machine may be shared: a load well above 0 at the start means other work competed for the cores.
+        "load average at start": " / ".join(f"{load:.2f}" for load in os.getloadavg()),
     }
 
 

@@ -5,8 +5,10 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
+from typing import IO
 
 import httpx
 
@@ -25,15 +27,20 @@ class ServerProcess:
         self._env = {**os.environ, "PYTHONPATH": str(ROOT), **env}
         self._ready_path = ready_path
         self._process: subprocess.Popen[bytes] | None = None
+        self._log: IO[bytes] | None = None
 
     def __enter__(self) -> ServerProcess:
+        # The server logs as in production (one line per request); a file, unlike a pipe nobody reads,
+        # never fills up and stalls it.
+        self._log = log = tempfile.TemporaryFile()
         self._process = subprocess.Popen(
-            [sys.executable, *self._argv], env=self._env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE
+            [sys.executable, *self._argv], env=self._env, stdout=subprocess.DEVNULL, stderr=log
         )
         deadline = time.monotonic() + 120
         while time.monotonic() < deadline:
             if self._process.poll() is not None:
-                raise RuntimeError(f"server exited: {self._process.stderr.read().decode()[-2000:]}")  # type: ignore[union-attr]
+                log.seek(0)
+                raise RuntimeError(f"server exited: {log.read().decode()[-2000:]}")
             try:
                 if httpx.get(self.url + self._ready_path, timeout=2).status_code == 200:
                     return self
@@ -41,6 +48,10 @@ class ServerProcess:
                 pass
             time.sleep(0.1)
         raise RuntimeError(f"server at {self.url} not ready after 120 s")
+
+    @property
+    def pid(self) -> int | None:
+        return self._process.pid if self._process else None
 
     @property
     def peak_rss_mib(self) -> float | None:
@@ -53,10 +64,12 @@ class ServerProcess:
                 self._process.wait(timeout=30)
             except subprocess.TimeoutExpired:
                 self._process.kill()
+        if self._log is not None:
+            self._log.close()
 
 
 def segb_server(store: str, data_dir: Path, env: dict[str, str] | None = None) -> ServerProcess:
-    """The SEGB API (`segb serve --only api`) on a free port, with logging kept out of the way."""
+    """The SEGB API (`segb serve --only api`) on a free port, logging at the default level."""
     port = free_port()
     argv = [
         "-m",
@@ -71,7 +84,7 @@ def segb_server(store: str, data_dir: Path, env: dict[str, str] | None = None) -
         "--api-port",
         str(port),
     ]
-    return ServerProcess(argv, {"SECRET_KEY": "", "LOGGING_LEVEL": "WARNING", **(env or {})}, port)
+    return ServerProcess(argv, {"SECRET_KEY": "", "LOGGING_LEVEL": "INFO", **(env or {})}, port)
 
 
 def baseline_server(endpoint: str, user: str, password: str, graph: str) -> ServerProcess:
@@ -92,3 +105,9 @@ def baseline_server(endpoint: str, user: str, password: str, graph: str) -> Serv
         graph,
     ]
     return ServerProcess(argv, {}, port, ready_path="/healthz/live")
+
+
+def null_server() -> ServerProcess:
+    """bench/null_server.py: answers every POST at once, for the client's own share of the latency."""
+    port = free_port()
+    return ServerProcess(["-m", "bench.null_server", "--port", str(port)], {}, port, ready_path="/healthz/live")

@@ -57,6 +57,10 @@ class BackendClient:
     async def post_json(self, path: str, body: Any, *, token: str | None = None) -> Any:
         return (await self.request("POST", path, token=token, json=body)).json()
 
+    async def sparql(self, query: str, fmt: str, *, token: str | None = None) -> httpx.Response:
+        """The raw answer of `GET /sparql` in format `fmt`, headers included (`X-SEGB-Truncated`)."""
+        return await self.request("GET", "/sparql", token=token, params={"query": query, "format": fmt})
+
     async def probe(self, path: str) -> tuple[int, Any]:
         """Status and JSON body of a public probe, without raising on error statuses."""
         try:

@@ -17,13 +17,23 @@ from ui.api_client import BackendClient, BackendError, BackendUnavailable
 from ui.csrf import CsrfCookieMiddleware, CsrfRejected
 from ui.forms import BadForm
 from ui.pages import error_page
-from ui.routes import graph, health, home, ledger, reports, session
+from ui.routes import graph, health, home, ledger, logs, query, reports, session, shared_context
 from ui.security import SecurityHeaders
 from ui.session import ViewerCache, ViewerMiddleware
 
 logger = logging.getLogger("segb.ui")
 
-ROUTERS = [home.router, health.router, reports.router, graph.router, session.router, ledger.router]
+ROUTERS = [
+    home.router,
+    health.router,
+    reports.router,
+    graph.router,
+    session.router,
+    ledger.router,
+    shared_context.router,
+    query.router,
+    logs.router,
+]
 
 
 def create_ui_app(settings: Settings | None = None) -> FastAPI:

@@ -6,15 +6,30 @@ import logging
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
+import anyio
 from fastapi import FastAPI
 from fastapi.middleware.cors import CORSMiddleware
 
 from backend import __version__
 from backend.api.errors import document_error_shape, install_error_handlers
 from backend.api.request_context import RequestContext
-from backend.api.routes import auth, events, graph, health, ingest, ledger, reports, sparql
+from backend.api.routes import (
+    auth,
+    events,
+    graph,
+    health,
+    ingest,
+    ledger,
+    logs,
+    reports,
+    shared_context,
+    sparql,
+    sparql_examples,
+)
 from backend.config import Settings
 from backend.services.container import build_services
+from backend.services.server_log import ServerLog
+from backend.services.store_monitor import StoreMonitor
 from backend.store.base import Store
 from backend.store.factory import open_store
 
@@ -39,6 +54,9 @@ ROUTERS = [
     graph.router,
     ledger.router,
     sparql.router,
+    sparql_examples.router,
+    logs.router,
+    shared_context.router,
 ]
 
 
@@ -48,16 +66,26 @@ def create_app(settings: Settings | None = None, store: Store | None = None) -> 
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        server_log = ServerLog.from_settings(settings)
+        server_log.install()
+        app.state.server_log = server_log
         active_store = store if store is not None else open_store(settings)
         app.state.services = build_services(settings, active_store)
         app.state.store_kind = active_store.kind
         logger.info("SEGB API ready (store=%s, auth=%s)", active_store.kind, settings.auth_enabled)
+        monitor = StoreMonitor(
+            active_store, max_retry_seconds=settings.store_retry_max_seconds, check_seconds=settings.store_check_seconds
+        )
         try:
-            yield
+            async with anyio.create_task_group() as background:
+                background.start_soon(monitor.run)
+                yield
+                background.cancel_scope.cancel()
         finally:
-            app.state.services.ledger.close()
+            app.state.services.close()
             if store is None:
                 active_store.close()
+            server_log.uninstall()
 
     app = FastAPI(
         title="SEGB server",

@@ -12,7 +12,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from backend.api.security import AuthenticationFailed, PermissionDenied
 from backend.services import errors as service_errors
 from backend.services.export import NotAcceptable
-from backend.store.base import StoreError, StoreRejectedQuery, StoreUnavailable
+from backend.store.base import QueryTimeout, StoreError, StoreRejectedQuery, StoreUnavailable
 
 logger = logging.getLogger("segb.api")
 
@@ -24,11 +24,13 @@ STATUS_BY_ERROR: list[tuple[type[Exception], int]] = [
     (PermissionDenied, 403),
     (service_errors.NotFound, 404),
     (NotAcceptable, 406),
+    (service_errors.Conflict, 409),
     (service_errors.PayloadTooLarge, 413),
     (service_errors.UnsupportedMediaType, 415),
     (service_errors.EmptyPayload, 422),
     (service_errors.InvalidPayload, 422),
     (service_errors.InvalidParameter, 422),
+    (QueryTimeout, 503),
     (StoreUnavailable, 503),
     (StoreError, 502),
 ]
@@ -46,6 +48,8 @@ def _service_error(request: Request, error: Exception) -> JSONResponse:
     elif isinstance(error, StoreUnavailable):
         kind = getattr(request.app.state, "store_kind", "store")
         body = error_body(status, f"The triple store ({kind}) is unavailable: {error}", "store_unavailable")
+    elif isinstance(error, QueryTimeout):
+        body = error_body(status, str(error), "query_timeout", timeout_seconds=error.seconds)
     elif isinstance(error, StoreRejectedQuery):
         body = error_body(status, f"The store rejected the query: {error}", "invalid_query")
     elif isinstance(error, StoreError):

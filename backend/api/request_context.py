@@ -2,7 +2,8 @@
 
 An incoming `X-Request-ID` is kept only when it is short and made of safe characters (it ends up in logs
 and headers, so a newline or markup must never pass); otherwise the server mints one. The id is echoed in
-the response and logged with the method, path, status, duration and authenticated user.
+the response and logged with the method, path, status, duration, authenticated user and, for a publish,
+the triples written; the fields also travel as structured data to the server log (services/server_log.py).
 """
 
 from __future__ import annotations
@@ -57,12 +58,26 @@ class RequestContext:
             await self.app(scope, receive, send_with_id)
         finally:
             principal = scope["state"].get("principal")
+            fields = {
+                "request_id": request_id,
+                "method": scope["method"],
+                "path": scope["path"],  # never the query string: it may hold a query or a token
+                "status": status,
+                "duration_ms": round((time.perf_counter() - started) * 1000, 1),
+                "user": getattr(principal, "username", None),
+                "triples_written": scope["state"].get("triples_written"),  # set by POST /ttl
+                "log_id": scope["state"].get("log_id"),  # set by POST /ttl
+            }
+            written, log_id = fields["triples_written"], fields["log_id"]
             logger.info(
-                "request id=%s method=%s path=%s status=%d ms=%.1f user=%s",
+                "request id=%s method=%s path=%s status=%d ms=%.1f user=%s%s%s",
                 request_id,
-                scope["method"],
-                scope["path"],
+                fields["method"],
+                fields["path"],
                 status,
-                (time.perf_counter() - started) * 1000,
-                getattr(principal, "username", "-"),
+                fields["duration_ms"],
+                fields["user"] or "-",
+                "" if written is None else f" triples_written={written}",
+                "" if log_id is None else f" log_id={log_id}",
+                extra=fields,
             )

@@ -12,6 +12,9 @@ from backend.services.ingest import IngestService
 from backend.services.ledger import LEDGER_FILE, Ledger
 from backend.services.reports import ReportService
 from backend.services.result_cache import OWNED_STORES, DataVersion, ResultCache
+from backend.services.shared_context.policy import Policy
+from backend.services.shared_context.service import SharedContextService
+from backend.services.shared_context.state import STATE_FILE
 from backend.store.base import Store
 
 
@@ -25,6 +28,11 @@ class Services:
     graph: GraphService
     explain: ExplainService
     ledger: Ledger
+    shared_context: SharedContextService
+
+    def close(self) -> None:
+        self.ledger.close()
+        self.shared_context.close()
 
 
 def build_services(settings: Settings, store: Store) -> Services:
@@ -33,7 +41,8 @@ def build_services(settings: Settings, store: Store) -> Services:
     cache = ResultCache(version, enabled=store.kind in OWNED_STORES)
     graph = GraphService(catalog, store, cache)
     # A memory store keeps its ledger in memory too: nothing of such a server is meant to be written.
-    ledger = Ledger(None if settings.store == "memory" else settings.data_dir / LEDGER_FILE)
+    in_memory = settings.store == "memory"
+    ledger = Ledger(None if in_memory else settings.data_dir / LEDGER_FILE)
     return Services(
         settings=settings,
         store=store,
@@ -49,4 +58,7 @@ def build_services(settings: Settings, store: Store) -> Services:
             ledger=ledger,
         ),
         ledger=ledger,
+        shared_context=SharedContextService.open(
+            Policy.from_settings(settings), None if in_memory else settings.data_dir / STATE_FILE
+        ),
     )

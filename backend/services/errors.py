@@ -56,6 +56,12 @@ class NotFound(ServiceError):
     code = "not_found"
 
 
+class Conflict(ServiceError):
+    """The request is valid but the resource is no longer in a state that allows it (a decided review)."""
+
+    code = "conflict"
+
+
 class InvalidParameter(ServiceError):
     """A query-string or body parameter has a value the service cannot use."""
 

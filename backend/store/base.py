@@ -25,6 +25,17 @@ class StoreRejectedQuery(StoreError):
     """The store refused a query as invalid; the message says why."""
 
 
+class QueryTimeout(StoreError):
+    """A user query ran past its time limit (the store's own limit, the HTTP wait, or the reading deadline)."""
+
+    def __init__(self, seconds: float) -> None:
+        super().__init__(
+            f"The query ran longer than {seconds:g} s (SPARQL_TIMEOUT_SECONDS) and was stopped; "
+            "narrow it down or add a LIMIT."
+        )
+        self.seconds = seconds
+
+
 @dataclass(frozen=True)
 class SelectResult:
     """Rows of a SELECT query, in the store's order, with the projected column names."""
@@ -51,8 +62,12 @@ class Store(Protocol):
     def count(self) -> int:
         """Number of triples in the events graph."""
 
-    def query(self, sparql: str, bindings: Bindings | None = None) -> QueryResult:
-        """Run a read-only query over the events graph (as default graph), with optional bound values."""
+    def query(self, sparql: str, bindings: Bindings | None = None, timeout: float | None = None) -> QueryResult:
+        """Run a read-only query over the events graph (as default graph), with optional bound values.
+
+        With `timeout`, a remote store is asked to stop after that many seconds and the answer is streamed,
+        so the caller can stop reading at its own deadline; the embedded store cannot be interrupted and
+        relies on the caller's deadline alone (backend.services.sparql_limits)."""
 
     def batches(self, size: int) -> Iterator[list[Quad]]:
         """Stream the events graph as lists of at most `size` quads (in the default graph)."""

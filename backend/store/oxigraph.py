@@ -67,7 +67,9 @@ class OxigraphStore:
         solutions = self._store.query(_COUNT)
         return int(next(iter(solutions))["n"].value)
 
-    def query(self, sparql: str, bindings: Bindings | None = None) -> QueryResult:
+    def query(self, sparql: str, bindings: Bindings | None = None, timeout: float | None = None) -> QueryResult:
+        # pyoxigraph cannot cancel a query; it yields solutions lazily, so the caller's per-row deadline
+        # is what bounds it (`timeout` is accepted for the protocol's sake).
         try:
             return self._store.query(bind_values(sparql, bindings))
         except SyntaxError as error:

@@ -4,13 +4,21 @@ from __future__ import annotations
 
 import io
 import logging
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from itertools import islice
 
 import httpx
 from pyoxigraph import QueryResultsFormat, QuerySolutions, RdfFormat, parse, parse_query_results
 
-from backend.store.base import Bindings, Quad, QueryResult, StoreError, StoreRejectedQuery, StoreUnavailable
+from backend.store.base import (
+    Bindings,
+    Quad,
+    QueryResult,
+    QueryTimeout,
+    StoreError,
+    StoreRejectedQuery,
+    StoreUnavailable,
+)
 from backend.store.known_triples import KnownTriples, triple_key
 from backend.store.query_form import query_form
 from backend.store.terms import bind_values
@@ -20,6 +28,9 @@ logger = logging.getLogger("segb.store")
 RESULTS_JSON = "application/sparql-results+json"
 N_TRIPLES = "application/n-triples"
 WRITE_BATCH_TRIPLES = 500  # well under Virtuoso's SP031 limit, and measured fastest there
+# A time-limited query waits this much longer than its limit over HTTP, so a store that enforces the limit
+# itself has time to say so.
+HTTP_GRACE_SECONDS = 1.0
 
 
 class SparqlHttpStore:
@@ -123,26 +134,26 @@ class SparqlHttpStore:
         row = next(iter(solutions))  # type: ignore[arg-type]
         return int(row["n"].value)
 
-    def query(self, sparql: str, bindings: Bindings | None = None) -> QueryResult:
-        return self._query_raw(bind_values(sparql, bindings), dataset=True)
+    def query(self, sparql: str, bindings: Bindings | None = None, timeout: float | None = None) -> QueryResult:
+        return self._query_raw(bind_values(sparql, bindings), dataset=True, timeout=timeout)
 
-    def _query_raw(self, sparql: str, *, dataset: bool) -> QueryResult:
+    def _query_raw(self, sparql: str, *, dataset: bool, timeout: float | None = None) -> QueryResult:
         form = query_form(sparql)
         if form is None:
             raise StoreRejectedQuery("not a SELECT, CONSTRUCT, ASK or DESCRIBE query")
         graph_form = form in ("construct", "describe")
-        response = self._send(
-            self.query_endpoint,
-            data=self._query_params(sparql, dataset),
-            headers={"Accept": N_TRIPLES if graph_form else RESULTS_JSON},
-        )
-        self._raise_for_status(response)
+        data = self._query_params(sparql, dataset)
+        headers = {"Accept": N_TRIPLES if graph_form else RESULTS_JSON}
+        body: bytes | _ByteStream
+        if timeout is None:
+            response = self._send(self.query_endpoint, data=data, headers=headers)
+            self._raise_for_status(response)
+            body = response.content
+        else:
+            body = self._open_stream({**data, **self._timeout_params(timeout)}, headers, timeout)
         if graph_form:
-            return iter(
-                quad.triple
-                for quad in parse(response.content, RdfFormat.N_TRIPLES)  # type: ignore[union-attr]
-            )
-        result = parse_query_results(response.content, QueryResultsFormat.JSON)
+            return iter(quad.triple for quad in parse(body, RdfFormat.N_TRIPLES))  # type: ignore[union-attr]
+        result = parse_query_results(body, QueryResultsFormat.JSON)
         if form == "ask" and isinstance(result, QuerySolutions):
             # Virtuoso 7 answers ASK as a one-column SELECT (`__ASK_RETVAL`), one row when the answer is true.
             truth = any(getattr(row[0], "value", "1") not in ("0", "false") for row in result)
@@ -150,6 +161,38 @@ class SparqlHttpStore:
                 b'{"head":{},"boolean":%s}' % str(truth).lower().encode(), QueryResultsFormat.JSON
             )
         return result
+
+    def _open_stream(self, data: dict[str, str], headers: dict[str, str], timeout: float) -> _ByteStream:
+        """Send a time-limited query and hand back its answer as a stream the parser reads on demand, so the
+        reader can stop (and the connection close) at its row cap or deadline."""
+        request = self._client.build_request(
+            "POST", self.query_endpoint, data=data, headers=headers, timeout=timeout + HTTP_GRACE_SECONDS
+        )
+        try:
+            response = self._client.send(request, stream=True)
+        except httpx.ConnectTimeout as error:
+            self._mark_down()
+            raise StoreUnavailable(f"{self.kind} does not answer: {error}") from error
+        except httpx.TimeoutException as error:
+            raise QueryTimeout(timeout) from error
+        except httpx.HTTPError as error:
+            self._mark_down()
+            raise StoreUnavailable(f"{self.kind} does not answer: {error}") from error
+        if response.status_code >= 400 or self._timed_out(response):
+            response.read()
+            response.close()
+            self._raise_for_status(response)
+            raise QueryTimeout(timeout)
+        return _ByteStream(response.iter_bytes(), on_close=response.close, timeout=timeout)
+
+    def _timeout_params(self, timeout: float) -> dict[str, str]:
+        """Protocol parameters asking the store itself to stop a query after `timeout` seconds (none in
+        SPARQL 1.1; subclasses add their store's own)."""
+        return {}
+
+    def _timed_out(self, response: httpx.Response) -> bool:
+        """Whether a successful answer says the store stopped the query at its time limit."""
+        return False
 
     def _query_params(self, sparql: str, dataset: bool) -> dict[str, str]:
         params = {"query": sparql}
@@ -199,19 +242,47 @@ class SparqlHttpStore:
 
 
 class _ByteStream(io.RawIOBase):
-    """A readable file over an iterator of byte chunks, so the parser can consume a streamed response."""
+    """A readable file over an iterator of byte chunks, so the parser can consume a streamed response.
 
-    def __init__(self, chunks: Iterator[bytes]) -> None:
+    `on_close` releases the response (at the end of the data, or when the parser is dropped early); with
+    `timeout`, an HTTP wait running out while reading is a QueryTimeout."""
+
+    def __init__(
+        self, chunks: Iterator[bytes], on_close: Callable[[], None] | None = None, timeout: float | None = None
+    ) -> None:
         self._chunks = chunks
         self._buffer = b""
+        self._on_close = on_close
+        self._timeout = timeout
 
     def readable(self) -> bool:
         return True
 
+    def close(self) -> None:
+        if self._on_close is not None:
+            self._on_close()
+            self._on_close = None
+        super().close()
+
+    def _next_chunk(self) -> bytes | None:
+        try:
+            return next(self._chunks, None)
+        except httpx.TimeoutException as error:
+            if self._timeout is None:
+                raise
+            raise QueryTimeout(self._timeout) from error
+        except httpx.HTTPError as error:
+            if self._timeout is None:
+                raise
+            raise StoreUnavailable(f"the store stopped answering: {error}") from error
+
     def readinto(self, target: bytearray | memoryview) -> int:  # type: ignore[override]
         while not self._buffer:
-            chunk = next(self._chunks, None)
+            chunk = self._next_chunk()
             if chunk is None:
+                if self._on_close is not None:
+                    self._on_close()
+                    self._on_close = None
                 return 0
             self._buffer = chunk
         size = min(len(target), len(self._buffer))

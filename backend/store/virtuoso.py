@@ -40,6 +40,13 @@ class VirtuosoStore(SparqlHttpStore):
             ping_timeout_seconds=ping_timeout_seconds,
         )
 
+    def _timeout_params(self, timeout: float) -> dict[str, str]:
+        return {"timeout": str(max(1, round(timeout * 1000)))}  # milliseconds ("anytime" queries)
+
+    def _timed_out(self, response: httpx.Response) -> bool:
+        # An "anytime" answer is a 200 holding what was found before the time ran out, flagged by this state.
+        return response.headers.get("x-sql-state") == "S1TAT"
+
     def _insert_missing(self, lines: list[str]) -> int:
         rows = "".join(f"({line})\n" for line in lines)
         graph = f"<{self.graph_uri}>"

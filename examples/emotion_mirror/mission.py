@@ -26,6 +26,7 @@ from semantic_log_generator import (
     RobotStateSnapshot,
     SemanticSEGBLogger,
 )
+from semantic_log_generator.types import SharedEventResolver
 
 ORO = "http://kb.openrobots.org#"
 INITIAL_MESSAGE = URIRef(ORO + "InitialMessage")
@@ -91,14 +92,18 @@ class EmotionMirrorMission:
         human_id: str,
         human_name: str,
         human: URIRef | None = None,
+        shared_event_resolver: SharedEventResolver | None = None,
         **options: Any,
     ) -> EmotionMirrorMission:
+        """With `shared_event_resolver` (e.g. the client's HTTPSharedContextResolver), the server decides
+        which shared event an utterance belongs to; without, the client's local deterministic fallback does."""
         logger = SemanticSEGBLogger(
             base_namespace=config.base_namespace,
             robot_id=config.robot_id,
             robot_name=config.robot_name,
             compact_resource_ids=True,
             namespace_prefix=config.robot_id,
+            shared_event_resolver=shared_event_resolver,
         )
         person = human if human is not None else logger.register_human(human_id, first_name=human_name)
         mission = cls(logger=logger, human=person, config=config, **options)

@@ -16,6 +16,7 @@ from typing import Any
 import httpx
 from requests import RequestException
 from semantic_log_generator import SEGBPublisher, SemanticSEGBLogger
+from semantic_log_generator.shared_context import HTTPSharedContextResolver
 
 from examples.emotion_mirror.driver import play
 from examples.emotion_mirror.mission import EmotionMirrorMission, RobotConfig
@@ -69,6 +70,8 @@ def _run(server: str, args: argparse.Namespace, script: Script) -> None:
         human_name=script.human_name,
         replier=ollama_replier(args.ollama_host, args.ollama_model),
         publish=publish,
+        # The tutorial's robots ask the server which shared event an utterance is (created/matched/ambiguous).
+        shared_event_resolver=HTTPSharedContextResolver(base_url=server, token=args.token),
     )
     print(f"{'start':<24} {'robot':<10} {config.robot_name} meets {script.human_name}  {_published(last)}")
     for step in play(mission, script):

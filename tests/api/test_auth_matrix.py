@@ -39,8 +39,16 @@ REQUIRED_ROLE: dict[tuple[str, str], str | None] = {
     ("POST", "/sparql"): "auditor",
     ("GET", "/query"): "auditor",
     ("POST", "/query/validate"): "auditor",
+    ("GET", "/sparql/examples"): "auditor",
+    ("GET", "/logs/server"): "admin",
     ("GET", "/ledger"): "auditor",
     ("GET", "/ledger/verify"): "auditor",
+    ("POST", "/shared-context/resolve"): "logger",
+    ("POST", "/shared-context/reconcile"): "admin",
+    ("GET", "/shared-context/stats"): "auditor",
+    ("GET", "/shared-context/review/pending"): "admin",
+    ("POST", "/shared-context/review/{case_id}/accept"): "admin",
+    ("POST", "/shared-context/review/{case_id}/reject"): "admin",
 }
 # A well-formed request for each route, so an authorised caller is served (a 404 from /explain once the
 # graph has been cleared is an answer, not a refusal).
@@ -55,6 +63,14 @@ REQUESTS: dict[tuple[str, str], dict[str, object]] = {
     ("POST", "/sparql"): {"content": "ASK { ?s ?p ?o }", "headers": {"Content-Type": "application/sparql-query"}},
     ("GET", "/query"): {"params": {"query": "SELECT * WHERE { ?s ?p ?o } LIMIT 1"}},
     ("POST", "/query/validate"): {"json": {"query": "SELECT * WHERE { ?s ?p ?o }"}},
+    ("POST", "/shared-context/resolve"): {
+        "json": {"event_kind": "human_utterance", "observed_at": "2026-05-04T10:00:00Z", "text": "hi"}
+    },
+    ("POST", "/shared-context/review/{case_id}/accept"): {
+        "path": "/shared-context/review/review_000000000000/accept",
+        "json": {"target_context_uri": "https://gsi.upm.es/segb/shared-events/x"},
+    },
+    ("POST", "/shared-context/review/{case_id}/reject"): {"path": "/shared-context/review/review_000000000000/reject"},
 }
 
 

@@ -21,8 +21,22 @@ def test_tiny_profile_writes_a_report_with_measured_figures(tmp_path: Path) -> N
     )
     assert run.returncode == 0, run.stderr[-3000:]
     report = output.read_text()
-    for heading in ("### 1. Small posts", "### 2. Many robots", "### 3. Cumulative re-publish", "### Targets"):
+    for heading in (
+        "### 1. Small posts",
+        "### 2. Many robots",
+        "### 3. Cumulative re-publish",
+        "### 4. Report queries",
+        "### Memory",
+        "### Targets",
+    ):
         assert heading in report
+    assert "| no-op server (client + HTTP only) |" in report
+    assert "| ledger receipt (SQLite) |" in report  # the in-process breakdown of a small post
+    assert re.search(r"\| API process, embedded \| 2,000 \| \d+ \|", report)
+    # Nothing lost: the embedded store's export holds exactly the distinct triples the robots sent.
+    robots = re.search(r"\| embedded \| 24 \|(?: [^|]+ \|){7} (\d+) \| (\d+) \|", report)
+    assert robots is not None, report
+    assert int(robots.group(1)) == int(robots.group(2)) > 0
     row = re.search(r"\| embedded \| (\d+) \| (\d+) \| ([\d.]+) \|", report)
     assert row is not None, report
     assert int(row.group(2)) == 30 and float(row.group(3)) > 0

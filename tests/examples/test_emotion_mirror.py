@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -94,6 +95,18 @@ def test_the_default_script_fills_the_four_tutorial_reports(
     assert {row["activityName"] for row in usage if row["activityKind"] == "response"} == {
         "Reply to the user (fallback)"
     }
+
+    # Each utterance's shared event was minted by the server's resolver, not by the client's local fallback.
+    stats = httpx.get(f"{memory_api.url}/shared-context/stats", timeout=10).json()
+    assert (stats["active_contexts"], stats["ambiguous_contexts"]) == (len(said), 0)
+    events = select_bindings(
+        memory_api.url,
+        "SELECT DISTINCT ?event WHERE { ?activity <http://schema.org/about> ?event . "
+        "?event a <http://schema.org/Event> }",
+    )
+    server_minted = re.compile(r"https://gsi\.upm\.es/segb/shared-events/human_utterance_[0-9a-f]{16}")
+    assert len(events) == len(said)
+    assert all(server_minted.fullmatch(binding["event"]["value"]) for binding in events)
 
 
 def test_a_script_file_is_replayed_in_time_order(memory_api: LiveServer, tmp_path: Path) -> None:

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import configparser
+import io
 import shutil
 import subprocess
 import time
+from collections.abc import Mapping
 from pathlib import Path
 
 import httpx
@@ -55,20 +58,41 @@ class VirtuosoProcess:
     user = "dba"
     password = "dba"
 
-    def __init__(self, directory: Path) -> None:
+    def __init__(
+        self,
+        directory: Path,
+        *,
+        http_port: int | None = None,
+        sql_port: int | None = None,
+        ini_overrides: Mapping[tuple[str, str], str] | None = None,
+    ) -> None:
+        """Free ports unless given; `ini_overrides` sets `{(section, key): value}` in virtuoso.ini."""
         binary = shutil.which("virtuoso-t")
         if binary is None:
             raise RuntimeError(f"virtuoso-t not found: {INSTALL_HINT}")
         self._binary = binary
         self.directory = directory
-        self.http_port = free_port()
-        self.sql_port = free_port()
+        self.http_port = http_port or free_port()
+        self.sql_port = sql_port or free_port()
         self.base_url = f"http://127.0.0.1:{self.http_port}"
         self.endpoint = f"{self.base_url}/sparql-auth"
-        (directory / "virtuoso.ini").write_text(
-            INI.format(dir=directory, sql_port=self.sql_port, http_port=self.http_port)
-        )
+        ini = INI.format(dir=directory, sql_port=self.sql_port, http_port=self.http_port)
+        (directory / "virtuoso.ini").write_text(_override_ini(ini, ini_overrides or {}))
         self._process: subprocess.Popen[bytes] | None = None
+
+    def set_dba_password(self, password: str) -> None:
+        """Change the running server's `dba` password, as the Docker image does with DBA_PASSWORD."""
+        isql = shutil.which("isql-vt") or shutil.which("isql")
+        if isql is None:
+            raise RuntimeError(f"isql-vt not found: {INSTALL_HINT}")
+        quoted = password.replace("'", "''")
+        subprocess.run(
+            [isql, str(self.sql_port), self.user, self.password, f"exec=user_set_password('dba', '{quoted}');"],
+            check=True,
+            capture_output=True,
+            timeout=30,
+        )
+        self.password = password
 
     def start(self) -> None:
         self._process = subprocess.Popen(
@@ -101,3 +125,18 @@ class VirtuosoProcess:
             self._process.kill()
             self._process.wait()
         self._process = None
+
+
+def _override_ini(ini: str, overrides: Mapping[tuple[str, str], str]) -> str:
+    if not overrides:
+        return ini
+    parser = configparser.ConfigParser(interpolation=None)
+    parser.optionxform = str  # type: ignore[assignment,method-assign]  # Virtuoso's keys are case-sensitive
+    parser.read_string(ini)
+    for (section, key), value in overrides.items():
+        if not parser.has_section(section):
+            parser.add_section(section)
+        parser.set(section, key, value)
+    text = io.StringIO()
+    parser.write(text)
+    return text.getvalue()

@@ -70,6 +70,8 @@ async def publish(
         return result, payload.claimed_user
 
     result, claimed = await run_in_threadpool(work)
+    # For the request's log line, which is the one line an ingest writes at INFO.
+    request.state.triples_written, request.state.log_id = result.triples_new, result.log_id
     return IngestResponse(
         message=f"Stored {result.triples_received} triples ({result.triples_new} new).",
         log_id=result.log_id,

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from urllib.parse import parse_qs
 
@@ -22,14 +23,18 @@ from pyoxigraph import (
 )
 
 from backend.api.deps import Auditor, LimitedBody, ServicesDep
+from backend.services.container import Services
 from backend.services.errors import InvalidParameter, ServiceError, UnsupportedMediaType
 from backend.services.export import NotAcceptable
 from backend.services.media_types import accepted_media_types
 from backend.services.namespaces import PREFIXES
 from backend.services.sparql_guard import MAX_QUERY_BYTES, CheckedQuery, guard_query, query_rejected
+from backend.services.sparql_limits import LimitedResult, QueryLimits, run_limited
 from backend.store.base import QueryResult, Store
 
 router = APIRouter(tags=["sparql"])
+
+QueryOutput = QueryResult | list[Triple]  # what a limited run hands over to be written out
 
 
 @dataclass(frozen=True)
@@ -82,16 +87,37 @@ def negotiate(form: str, accept: str | None, format_name: str | None) -> ResultF
     raise NotAcceptable(f"Cannot answer a {form.upper()} query as any of '{accept}'; available: {choices}.")
 
 
-def _results_bytes(result: QueryResult, fmt: ResultFormat) -> bytes:
+def _results_bytes(result: QueryOutput, fmt: ResultFormat) -> bytes:
     if isinstance(result, QuerySolutions | QueryBoolean):
         return result.serialize(format=fmt.results)  # type: ignore[return-value]
     prefixes = PREFIXES if fmt.rdf in (RdfFormat.TURTLE, RdfFormat.RDF_XML) else None
     return serialize(result, format=fmt.rdf, prefixes=prefixes)  # type: ignore[return-value]
 
 
-def run_checked(store: Store, checked: CheckedQuery) -> QueryResult:
-    """Run a query the guard has checked (the text sent is the text checked)."""
-    return store.query(checked.text)
+def run_checked(services: Services, checked: CheckedQuery) -> LimitedResult:
+    """Run a query the guard has checked (the text sent is the text checked), within the configured limits."""
+    settings = services.settings
+    limits = QueryLimits(settings.sparql_timeout_seconds, settings.sparql_max_rows)
+    return run_limited(services.store, checked.text, limits)
+
+
+def run_and_write(
+    services: Services, checked: CheckedQuery, write: Callable[[QueryOutput], bytes]
+) -> tuple[bytes, bool]:
+    """The query's answer written out, and whether it was cut at the row cap.
+
+    Only bytes leave this frame: pyoxigraph results must be dropped on the thread that made them, and the
+    caller's frame can outlive the call (the SPARQL parser's cache keeps exceptions whose tracebacks reach
+    it), which would let the garbage collector drop them on another thread later."""
+    answer = run_checked(services, checked)
+    return write(answer.result), answer.truncated
+
+
+def limit_headers(truncated: bool, services: Services) -> dict[str, str]:
+    """Headers telling a client the answer was cut at the row cap (standard clients ignore them)."""
+    if not truncated:
+        return {}
+    return {"X-SEGB-Truncated": "true", "X-SEGB-Max-Rows": str(services.settings.sparql_max_rows)}
 
 
 def _content_type(media_type: str) -> str:
@@ -138,17 +164,20 @@ def _from_fields(fields: dict[str, list[str]]) -> ProtocolRequest:
     )
 
 
-async def _answer(store: Store, request: ProtocolRequest, accept: str | None) -> Response:
-    def work() -> tuple[bytes, ResultFormat]:
+async def _answer(services: Services, request: ProtocolRequest, accept: str | None) -> Response:
+    store = services.store
+
+    def work() -> tuple[bytes, bool, ResultFormat]:
         _check_dataset(store, request.default_graphs, request.named_graphs)
         checked = guard_query(request.query, store.graph_uri)
         # Negotiate before running, so an unacceptable request costs no query.
         fmt = negotiate(checked.form, accept, request.format)
-        return _results_bytes(run_checked(store, checked), fmt), fmt
+        return (*run_and_write(services, checked, lambda result: _results_bytes(result, fmt)), fmt)
 
     # Checking (rdflib parsing) and the query itself are blocking work.
-    body, fmt = await run_in_threadpool(work)
-    return Response(body, media_type=_content_type(fmt.media_type), headers={"Vary": "Accept"})
+    body, truncated, fmt = await run_in_threadpool(work)
+    headers = {"Vary": "Accept", **limit_headers(truncated, services)}
+    return Response(body, media_type=_content_type(fmt.media_type), headers=headers)
 
 
 _PROTOCOL_DESCRIPTION = (
@@ -162,7 +191,10 @@ _PROTOCOL_DESCRIPTION = (
     "(`virtuoso_pragma`), `bif:`/`sql:` and other OpenLink extensions (`virtuoso_extension`), functions called "
     "by IRI outside XSD and XPath (`extension_function`), `FROM`/`FROM NAMED`/dataset parameters naming anything "
     "but the events graph (`dataset`), `GRAPH` patterns (`graph`), undeclared prefixes (`undeclared_prefix`) and "
-    f"syntax errors (`syntax`, with `line` and `column`). Queries over {MAX_QUERY_BYTES} bytes get 413."
+    f"syntax errors (`syntax`, with `line` and `column`). Queries over {MAX_QUERY_BYTES} bytes get 413.\n\n"
+    "Limits: an answer holds at most `SPARQL_MAX_ROWS` rows (or triples); a longer one is cut there and carries "
+    "`X-SEGB-Truncated: true`. A query still running after `SPARQL_TIMEOUT_SECONDS` is stopped: 503 with "
+    "`error: query_timeout`."
 )
 
 
@@ -178,7 +210,7 @@ async def sparql_get(
 ) -> Response:
     fields = {"default-graph-uri": default_graph_uri, "named-graph-uri": named_graph_uri}
     fields.update({name: [value] for name, value in (("query", query), ("format", format)) if value is not None})
-    return await _answer(services.store, _from_fields(fields), request.headers.get("accept"))
+    return await _answer(services, _from_fields(fields), request.headers.get("accept"))
 
 
 _POST_BODY = {
@@ -233,7 +265,7 @@ async def sparql_post(request: Request, principal: Auditor, services: ServicesDe
             f"Send the query as application/sparql-query or application/x-www-form-urlencoded, not "
             f"'{media_type or 'no Content-Type'}'."
         )
-    return await _answer(services.store, _from_fields(fields), request.headers.get("accept"))
+    return await _answer(services, _from_fields(fields), request.headers.get("accept"))
 
 
 # --- the reference backend's /query and /query/validate ---------------------------------------------------
@@ -244,7 +276,7 @@ RESULT = NamedNode(EX + "Result")
 XSD_BOOLEAN = NamedNode("http://www.w3.org/2001/XMLSchema#boolean")
 
 
-def rows_as_turtle(result: QueryResult) -> bytes:
+def rows_as_turtle(result: QueryOutput) -> bytes:
     """The reference's encoding of an answer as Turtle, which its web UI parses: each SELECT row is a blank
     node typed ex:Result with one `ex:<variable>` triple per bound variable. Rows are written in the
     answer's order, so a client reading the document in order keeps ORDER BY; literals keep their datatype
@@ -290,13 +322,11 @@ async def query_reference(
     principal: Auditor,
     query: str = Query(..., description="The SPARQL query (SELECT, ASK, CONSTRUCT or DESCRIBE)."),
 ) -> Response:
-    store = services.store
+    def work() -> tuple[bytes, bool]:
+        return run_and_write(services, guard_query(query, services.store.graph_uri), rows_as_turtle)
 
-    def work() -> bytes:
-        checked = guard_query(query, store.graph_uri)
-        return rows_as_turtle(run_checked(store, checked))
-
-    return Response(await run_in_threadpool(work), media_type="text/turtle; charset=utf-8")
+    body, truncated = await run_in_threadpool(work)
+    return Response(body, media_type="text/turtle; charset=utf-8", headers=limit_headers(truncated, services))
 
 
 class ValidateRequest(BaseModel):

@@ -1,0 +1,146 @@
+"""The structured server log: every `segb.*` record as one JSON object per line in a size-rotated file (or a
+bounded in-memory ring for a throwaway server), and the reader behind GET /logs/server.
+
+Records carry only what the code logs: request lines hold the id, method, path (never the query string),
+status, duration, user and triples written; no token or body is ever logged.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+from collections import deque
+from collections.abc import Iterable, Iterator
+from datetime import UTC, datetime
+from logging.handlers import RotatingFileHandler
+from pathlib import Path
+from typing import Any
+
+from backend.config import Settings
+
+ROOT_LOGGER = "segb"
+LEVELS = ("DEBUG", "INFO", "WARNING", "ERROR", "CRITICAL")
+# Structured fields a record may carry (passed as `extra=` by the request logger and others).
+FIELDS = ("request_id", "user", "method", "path", "status", "duration_ms", "triples_written", "log_id")
+RING_ENTRIES = 5000
+
+Entry = dict[str, Any]
+
+
+def entry_of(record: logging.LogRecord) -> Entry:
+    entry: Entry = {
+        "time": datetime.fromtimestamp(record.created, UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z"),
+        "level": record.levelname,
+        "logger": record.name,
+        "message": record.getMessage(),
+    }
+    for name in FIELDS:
+        value = record.__dict__.get(name)
+        if value is not None:
+            entry[name] = value
+    if record.exc_info and record.exc_info[1] is not None:
+        error = record.exc_info[1]
+        entry["exception"] = f"{type(error).__name__}: {error}"
+    return entry
+
+
+class _JsonLines(RotatingFileHandler):
+    def format(self, record: logging.LogRecord) -> str:
+        return json.dumps(entry_of(record), ensure_ascii=False, default=str)
+
+
+class _Ring(logging.Handler):
+    def __init__(self, size: int) -> None:
+        super().__init__()
+        self.entries: deque[Entry] = deque(maxlen=size)
+        self._entries_lock = threading.Lock()
+
+    def emit(self, record: logging.LogRecord) -> None:
+        entry = entry_of(record)
+        with self._entries_lock:
+            self.entries.append(entry)
+
+    def newest_first(self) -> list[Entry]:
+        with self._entries_lock:
+            return list(reversed(self.entries))
+
+
+class ServerLog:
+    """One server's log sink. `install()` hooks it to the `segb` loggers; `read()` answers queries on it."""
+
+    def __init__(self, path: Path | None, *, level: str = "INFO", max_bytes: int = 10_485_760, backups: int = 3):
+        self.path = path
+        self.level = level
+        self.backups = backups
+        if path is None:
+            self.handler: logging.Handler = _Ring(RING_ENTRIES)
+        else:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            self.handler = _JsonLines(path, maxBytes=max_bytes, backupCount=backups, encoding="utf-8")
+        self.handler.setLevel(level)
+
+    @classmethod
+    def from_settings(cls, settings: Settings) -> ServerLog:
+        return cls(
+            settings.effective_server_log_file,
+            level=settings.log_level,
+            max_bytes=settings.server_log_max_bytes,
+            backups=settings.server_log_backups,
+        )
+
+    @property
+    def source(self) -> str:
+        return "memory" if self.path is None else "file"
+
+    def install(self) -> None:
+        logger = logging.getLogger(ROOT_LOGGER)
+        logger.addHandler(self.handler)
+        # Without this, records under WARNING would be dropped before any handler saw them (the root
+        # logger's default level); never raise a level someone lowered on purpose.
+        if logger.level == logging.NOTSET or logger.level > self.handler.level:
+            logger.setLevel(self.handler.level)
+
+    def uninstall(self) -> None:
+        logging.getLogger(ROOT_LOGGER).removeHandler(self.handler)
+        self.handler.close()
+
+    def read(self, limit: int, level: str = "DEBUG", contains: str | None = None) -> list[Entry]:
+        """Up to `limit` entries at `level` or above whose text holds `contains` (any case), newest first;
+        blocking file reads, so call it off the event loop."""
+        lowest = LEVELS.index(level)
+        needle = contains.casefold() if contains else None
+        found: list[Entry] = []
+        for entry in self._newest_first():
+            if entry.get("level") not in LEVELS or LEVELS.index(entry["level"]) < lowest:
+                continue
+            if needle and needle not in " ".join(str(value) for value in entry.values()).casefold():
+                continue
+            found.append(entry)
+            if len(found) >= limit:
+                break
+        return found
+
+    def _newest_first(self) -> Iterator[Entry]:
+        if isinstance(self.handler, _Ring):
+            yield from self.handler.newest_first()
+            return
+        assert self.path is not None
+        # The current file, then its rotated backups (.1 is the most recent), read only as far as needed.
+        for index in range(self.backups + 1):
+            path = self.path if index == 0 else self.path.with_name(f"{self.path.name}.{index}")
+            try:
+                lines = path.read_text(encoding="utf-8", errors="replace").splitlines()
+            except FileNotFoundError:
+                continue
+            yield from _parsed(reversed(lines))
+
+
+def _parsed(lines: Iterable[str]) -> Iterator[Entry]:
+    for line in lines:
+        try:
+            entry = json.loads(line)
+        except ValueError:
+            continue  # a line being written right now, or damaged by hand
+        if isinstance(entry, dict):
+            yield entry

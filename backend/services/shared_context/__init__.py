@@ -1,0 +1,1 @@
+"""Shared context: one canonical URI per real-world event that several robots observe."""

@@ -1,0 +1,289 @@
+"""Where shared contexts live: a SQLite file beside the store (durable, transactional, one writer at a time)."""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import astuple, dataclass, fields
+from pathlib import Path
+
+STATE_FILE = "shared-context.sqlite3"
+
+SCHEMA = """
+CREATE TABLE IF NOT EXISTS contexts (
+    seq            INTEGER PRIMARY KEY,
+    uri            TEXT NOT NULL UNIQUE,
+    event_kind     TEXT NOT NULL,
+    status         TEXT NOT NULL,
+    observed_at    REAL NOT NULL,
+    subject        TEXT,
+    modality       TEXT,
+    canonical_text TEXT,
+    created_at     TEXT NOT NULL,
+    updated_at     TEXT NOT NULL
+);
+CREATE INDEX IF NOT EXISTS contexts_by_time ON contexts (event_kind, observed_at);
+CREATE TABLE IF NOT EXISTS observations (
+    seq             INTEGER PRIMARY KEY,
+    context_uri     TEXT NOT NULL,
+    observed_at     REAL NOT NULL,
+    subject         TEXT,
+    modality        TEXT,
+    text            TEXT,
+    observation_uri TEXT,
+    robot_uri       TEXT,
+    reported_by     TEXT,
+    recorded_at     TEXT NOT NULL
+);
+CREATE INDEX IF NOT EXISTS observations_by_context ON observations (context_uri);
+CREATE TABLE IF NOT EXISTS aliases (source TEXT PRIMARY KEY, target TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS cases (
+    seq          INTEGER PRIMARY KEY,
+    case_id      TEXT NOT NULL UNIQUE,
+    source_uri   TEXT NOT NULL,
+    status       TEXT NOT NULL,
+    candidates   TEXT NOT NULL,
+    created_at   TEXT NOT NULL,
+    decided_at   TEXT,
+    selected_uri TEXT
+);
+CREATE TABLE IF NOT EXISTS rejected_pairs (
+    source    TEXT NOT NULL,
+    candidate TEXT NOT NULL,
+    PRIMARY KEY (source, candidate)
+);
+"""
+
+
+@dataclass
+class Context:
+    """One shared context. `seq` orders contexts by creation; `status` is active, ambiguous or merged."""
+
+    seq: int | None
+    uri: str
+    event_kind: str
+    status: str
+    observed_at: float
+    subject: str | None
+    modality: str | None
+    canonical_text: str | None
+    created_at: str
+    updated_at: str
+
+
+@dataclass(frozen=True)
+class ObservationRow:
+    context_uri: str
+    observed_at: float
+    subject: str | None
+    modality: str | None
+    text: str | None
+    observation_uri: str | None
+    robot_uri: str | None
+    reported_by: str | None  # the authenticated account that sent it
+    recorded_at: str
+
+
+@dataclass
+class Case:
+    """A review case: an ambiguous source context and its candidates, waiting for a person's decision."""
+
+    case_id: str
+    source_uri: str
+    status: str
+    candidates: list[dict[str, object]]
+    created_at: str
+    decided_at: str | None = None
+    selected_uri: str | None = None
+
+
+CONTEXT_COLUMNS = ", ".join(field.name for field in fields(Context))
+OBSERVATION_COLUMNS = ", ".join(field.name for field in fields(ObservationRow))
+CASE_COLUMNS = ", ".join(field.name for field in fields(Case))
+
+
+def _placeholders(count: int) -> str:
+    return ", ".join("?" for _ in range(count))
+
+
+class ContextState:
+    """Blocking SQLite access; `transaction()` serialises writers, even across processes (BEGIN IMMEDIATE)."""
+
+    def __init__(self, path: Path | None) -> None:
+        if path is not None:
+            path.parent.mkdir(parents=True, exist_ok=True)
+        self._db = sqlite3.connect(
+            ":memory:" if path is None else str(path), isolation_level=None, check_same_thread=False, timeout=10
+        )
+        self._lock = threading.Lock()
+        if path is not None:
+            self._db.execute("PRAGMA journal_mode=WAL")
+        self._db.executescript(SCHEMA)
+
+    @contextmanager
+    def transaction(self) -> Iterator[ContextState]:
+        with self._lock:
+            self._db.execute("BEGIN IMMEDIATE")
+            try:
+                yield self
+            except BaseException:
+                self._db.execute("ROLLBACK")
+                raise
+            self._db.execute("COMMIT")
+
+    @contextmanager
+    def snapshot(self) -> Iterator[ContextState]:
+        """Consistent reads without taking the write lock of other processes."""
+        with self._lock:
+            self._db.execute("BEGIN")
+            try:
+                yield self
+            finally:
+                self._db.execute("COMMIT")
+
+    def close(self) -> None:
+        with self._lock:
+            self._db.close()
+
+    # --- contexts ------------------------------------------------------------------------------------
+
+    def context(self, uri: str) -> Context | None:
+        row = self._db.execute(f"SELECT {CONTEXT_COLUMNS} FROM contexts WHERE uri = ?", (uri,)).fetchone()
+        return Context(*row) if row else None
+
+    def contexts(self, uris: list[str]) -> list[Context]:
+        found = (self.context(uri) for uri in dict.fromkeys(uris))
+        return [context for context in found if context is not None]
+
+    def unmerged_near(
+        self, event_kind: str, earliest: float, latest: float, status: str | None = None
+    ) -> list[Context]:
+        """Active and ambiguous contexts of a kind observed in [earliest, latest], oldest created first."""
+        sql = (
+            f"SELECT {CONTEXT_COLUMNS} FROM contexts WHERE event_kind = ? AND observed_at BETWEEN ? AND ? "
+            "AND status != 'merged'"
+        )
+        params: list[object] = [event_kind, earliest, latest]
+        if status is not None:
+            sql += " AND status = ?"
+            params.append(status)
+        return [Context(*row) for row in self._db.execute(sql + " ORDER BY seq", params)]
+
+    def with_status(self, *statuses: str, newest_first: bool = False) -> list[Context]:
+        order = "updated_at DESC, seq DESC" if newest_first else "seq"
+        rows = self._db.execute(
+            f"SELECT {CONTEXT_COLUMNS} FROM contexts WHERE status IN ({_placeholders(len(statuses))}) ORDER BY {order}",
+            statuses,
+        )
+        return [Context(*row) for row in rows]
+
+    def add_context(self, context: Context) -> None:
+        values = astuple(context)[1:]  # seq is assigned by SQLite
+        self._db.execute(
+            f"INSERT INTO contexts ({CONTEXT_COLUMNS.removeprefix('seq, ')}) VALUES ({_placeholders(len(values))})",
+            values,
+        )
+
+    def save_context(self, context: Context) -> None:
+        self._db.execute(
+            "UPDATE contexts SET status = ?, observed_at = ?, subject = ?, modality = ?, canonical_text = ?, "
+            "updated_at = ? WHERE uri = ?",
+            (
+                context.status,
+                context.observed_at,
+                context.subject,
+                context.modality,
+                context.canonical_text,
+                context.updated_at,
+                context.uri,
+            ),
+        )
+
+    def uri_taken(self, uri: str) -> bool:
+        return self._db.execute("SELECT 1 FROM contexts WHERE uri = ?", (uri,)).fetchone() is not None
+
+    def count_by_status(self) -> dict[str, int]:
+        return dict(self._db.execute("SELECT status, COUNT(*) FROM contexts GROUP BY status").fetchall())
+
+    # --- observations --------------------------------------------------------------------------------
+
+    def add_observation(self, observation: ObservationRow) -> None:
+        values = astuple(observation)
+        self._db.execute(
+            f"INSERT INTO observations ({OBSERVATION_COLUMNS}) VALUES ({_placeholders(len(values))})", values
+        )
+
+    def observations(self, context_uri: str) -> list[ObservationRow]:
+        rows = self._db.execute(
+            f"SELECT {OBSERVATION_COLUMNS} FROM observations WHERE context_uri = ? ORDER BY observed_at DESC, seq DESC",
+            (context_uri,),
+        )
+        return [ObservationRow(*row) for row in rows]
+
+    def move_observations(self, source: str, target: str) -> None:
+        self._db.execute("UPDATE observations SET context_uri = ? WHERE context_uri = ?", (target, source))
+
+    # --- aliases -------------------------------------------------------------------------------------
+
+    def canonical(self, uri: str) -> str:
+        row = self._db.execute("SELECT target FROM aliases WHERE source = ?", (uri,)).fetchone()
+        return row[0] if row else uri
+
+    def add_alias(self, source: str, target: str) -> None:
+        # Kept flat: whatever pointed at the source now points at the target, so one lookup always suffices.
+        self._db.execute("UPDATE aliases SET target = ? WHERE target = ?", (target, source))
+        self._db.execute("INSERT OR REPLACE INTO aliases (source, target) VALUES (?, ?)", (source, target))
+
+    def alias_count(self) -> int:
+        return self._db.execute("SELECT COUNT(*) FROM aliases").fetchone()[0]
+
+    # --- review cases --------------------------------------------------------------------------------
+
+    def case(self, case_id: str) -> Case | None:
+        row = self._db.execute(f"SELECT {CASE_COLUMNS} FROM cases WHERE case_id = ?", (case_id,)).fetchone()
+        return _case(row) if row else None
+
+    def pending_cases(self) -> list[Case]:
+        rows = self._db.execute(f"SELECT {CASE_COLUMNS} FROM cases WHERE status = 'pending' ORDER BY seq DESC")
+        return [_case(row) for row in rows]
+
+    def pending_case_of(self, source_uri: str) -> Case | None:
+        row = self._db.execute(
+            f"SELECT {CASE_COLUMNS} FROM cases WHERE source_uri = ? AND status = 'pending'", (source_uri,)
+        ).fetchone()
+        return _case(row) if row else None
+
+    def cases_of(self, source_uri: str) -> int:
+        return self._db.execute("SELECT COUNT(*) FROM cases WHERE source_uri = ?", (source_uri,)).fetchone()[0]
+
+    def save_case(self, case: Case) -> None:
+        values = (*astuple(case)[:3], json.dumps(case.candidates), *astuple(case)[4:])
+        self._db.execute(
+            f"INSERT INTO cases ({CASE_COLUMNS}) VALUES ({_placeholders(len(values))}) "
+            "ON CONFLICT (case_id) DO UPDATE SET status = excluded.status, candidates = excluded.candidates, "
+            "decided_at = excluded.decided_at, selected_uri = excluded.selected_uri",
+            values,
+        )
+
+    def reject_pair(self, source: str, candidate: str) -> None:
+        self._db.execute("INSERT OR IGNORE INTO rejected_pairs (source, candidate) VALUES (?, ?)", (source, candidate))
+
+    def rejected_candidates(self, source: str) -> set[str]:
+        rows = self._db.execute("SELECT candidate FROM rejected_pairs WHERE source = ?", (source,))
+        return {row[0] for row in rows}
+
+
+def _case(row: tuple[object, ...]) -> Case:
+    case_id, source_uri, status, candidates, created_at, decided_at, selected_uri = row
+    return Case(
+        str(case_id),
+        str(source_uri),
+        str(status),
+        json.loads(str(candidates)),
+        str(created_at),
+        decided_at,  # type: ignore[arg-type]
+        selected_uri,  # type: ignore[arg-type]
+    )

@@ -1,0 +1,67 @@
+"""Turning a /sparql answer into the cells of the query page's table (IRIs, literals, blank nodes)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from pyoxigraph import BlankNode, Literal, NamedNode, RdfFormat, parse
+
+XSD_STRING = "http://www.w3.org/2001/XMLSchema#string"
+RDF_LANG_STRING = "http://www.w3.org/1999/02/22-rdf-syntax-ns#langString"
+
+
+@dataclass(frozen=True)
+class Cell:
+    kind: str  # "uri", "literal", "bnode" or "" (unbound)
+    value: str = ""
+    language: str = ""
+    datatype: str = ""  # only when it says something (not xsd:string or rdf:langString)
+
+
+@dataclass(frozen=True)
+class Table:
+    columns: list[str]
+    rows: list[list[Cell]]
+    boolean: bool | None = None  # an ASK answer
+
+
+def from_results_json(document: dict[str, Any]) -> Table:
+    """A SPARQL JSON results document (SELECT or ASK)."""
+    if "boolean" in document:
+        return Table(columns=[], rows=[], boolean=bool(document["boolean"]))
+    columns = list(document["head"].get("vars", []))
+    rows = [[_json_cell(binding.get(name)) for name in columns] for binding in document["results"]["bindings"]]
+    return Table(columns=columns, rows=rows)
+
+
+def from_ntriples(body: bytes) -> Table:
+    """A CONSTRUCT or DESCRIBE answer, one row per triple."""
+    rows = [
+        [_term_cell(quad.subject), _term_cell(quad.predicate), _term_cell(quad.object)]
+        for quad in parse(body, RdfFormat.N_TRIPLES)
+    ]
+    return Table(columns=["subject", "predicate", "object"], rows=rows)
+
+
+def _json_cell(term: dict[str, str] | None) -> Cell:
+    if term is None:
+        return Cell("")
+    kind = "literal" if term["type"] in ("literal", "typed-literal") else term["type"]
+    datatype = term.get("datatype", "")
+    return Cell(
+        kind, term["value"], term.get("xml:lang", ""), "" if datatype in (XSD_STRING, RDF_LANG_STRING) else datatype
+    )
+
+
+def _term_cell(term: object) -> Cell:
+    if isinstance(term, NamedNode):
+        return Cell("uri", term.value)
+    if isinstance(term, BlankNode):
+        return Cell("bnode", term.value)
+    if isinstance(term, Literal):
+        datatype = term.datatype.value
+        return Cell(
+            "literal", term.value, term.language or "", "" if datatype in (XSD_STRING, RDF_LANG_STRING) else datatype
+        )
+    return Cell("literal", str(term))
