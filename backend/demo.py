@@ -70,7 +70,7 @@ def load_demo(settings: Settings, store: Store) -> IngestResult | None:
     try:
         result = services.ingest.ingest(payload, actor=DEMO_USER)
     finally:
-        services.ledger.close()
+        services.close()
     logger.info(
         "demo dataset loaded: %d triples (robots ARI and TIAGo, humans Maria and Carlos; log_id=%s)",
         result.triples_new,
