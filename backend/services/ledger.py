@@ -15,9 +15,10 @@ import threading
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, fields, replace
-from datetime import UTC, datetime
 from pathlib import Path
 from typing import Literal
+
+from backend.services.clock import utc_iso
 
 LEDGER_FILE = "ledger.sqlite3"
 GENESIS_HASH = "0" * 64
@@ -173,7 +174,7 @@ class Ledger:
                     action=entry.action,
                     user=entry.user,
                     claimed_user=entry.claimed_user,
-                    recorded_at=_utc_now(),
+                    recorded_at=utc_iso(),
                     payload_sha256=payload_sha256,
                     triples_received=entry.triples_received,
                     triples_new=entry.triples_new,
@@ -244,7 +245,3 @@ def _fault(receipt: Receipt, expected_sequence: int, previous: str) -> BrokenRea
     if receipt.previous_hash != previous:
         return "previous hash does not match"
     return None
-
-
-def _utc_now() -> str:
-    return datetime.now(UTC).isoformat(timespec="microseconds").replace("+00:00", "Z")

@@ -12,12 +12,12 @@ import logging
 import threading
 from collections import deque
 from collections.abc import Iterable, Iterator
-from datetime import UTC, datetime
 from logging.handlers import RotatingFileHandler
 from pathlib import Path
 from typing import Any
 
 from backend.config import Settings
+from backend.services.clock import utc_iso
 
 ROOT_LOGGER = "segb"
 LEVELS = ("DEBUG", "INFO", "WARNING", "ERROR", "CRITICAL")
@@ -30,7 +30,7 @@ Entry = dict[str, Any]
 
 def entry_of(record: logging.LogRecord) -> Entry:
     entry: Entry = {
-        "time": datetime.fromtimestamp(record.created, UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z"),
+        "time": utc_iso(record.created, timespec="milliseconds"),
         "level": record.levelname,
         "logger": record.name,
         "message": record.getMessage(),

@@ -15,7 +15,8 @@ from fastapi.concurrency import run_in_threadpool
 from pydantic import BaseModel, Field, field_validator
 
 from backend.api.deps import Admin, Auditor, Logger, ServicesDep
-from backend.services.shared_context.policy import RESOLVER_VERSION, atom, epoch, iso, scoring_text
+from backend.services.clock import utc_iso
+from backend.services.shared_context.policy import RESOLVER_VERSION, atom, epoch, scoring_text
 from backend.services.shared_context.service import ContextRecord, Decision, Observation
 from backend.services.shared_context.state import Case
 
@@ -99,13 +100,13 @@ class ContextOut(BaseModel):
             uri=context.uri,
             event_kind=context.event_kind,
             status=context.status,  # type: ignore[arg-type]
-            observed_at=iso(context.observed_at),
+            observed_at=utc_iso(context.observed_at),
             subject_uri=context.subject,
             modality=context.modality,
             canonical_text=context.canonical_text,
             observation_count=len(record.observations),
             observations=[
-                ObservationOut(**{**asdict(row), "observed_at": iso(row.observed_at), "subject_uri": row.subject})
+                ObservationOut(**{**asdict(row), "observed_at": utc_iso(row.observed_at), "subject_uri": row.subject})
                 for row in record.observations
             ],
         )

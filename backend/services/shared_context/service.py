@@ -8,12 +8,12 @@ robots resolving the same event at once get one context.
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from backend.services.clock import utc_iso
 from backend.services.errors import Conflict, InvalidParameter, NotFound
-from backend.services.shared_context.policy import MAX_CANDIDATES_PER_CASE, Policy, digest, iso, slug
+from backend.services.shared_context.policy import MAX_CANDIDATES_PER_CASE, Policy, digest, slug
 from backend.services.shared_context.scoring import Score, decisive, may_match, ranked, score
 from backend.services.shared_context.state import Case, Context, ContextState, ObservationRow
 
@@ -130,7 +130,7 @@ class SharedContextService:
         context.subject = context.subject or observation.subject
         context.modality = context.modality or observation.modality
         context.canonical_text = context.canonical_text or observation.canonical_text
-        context.updated_at = _now()
+        context.updated_at = utc_iso()
         state.save_context(context)
         return uri
 
@@ -140,7 +140,7 @@ class SharedContextService:
         while True:
             basis = digest(
                 observation.event_kind,
-                iso(observation.observed_at),
+                utc_iso(observation.observed_at),
                 observation.subject,
                 observation.modality,
                 observation.canonical_text,
@@ -150,7 +150,7 @@ class SharedContextService:
             if not state.uri_taken(uri):
                 break
             attempt += 1
-        now = _now()
+        now = utc_iso()
         state.add_context(
             Context(
                 None,
@@ -207,7 +207,7 @@ class SharedContextService:
             case = self._pending(state, case_id)
             for candidate in case.candidates:
                 state.reject_pair(case.source_uri, str(candidate["context_uri"]))
-            case.status, case.decided_at = "rejected", _now()
+            case.status, case.decided_at = "rejected", utc_iso()
             state.save_case(case)
         return Decision(case_id, "rejected", case.source_uri, None, None)
 
@@ -273,7 +273,7 @@ class SharedContextService:
     def _merge(self, state: ContextState, source_uri: str, target_uri: str) -> None:
         source, target = state.context(source_uri), state.context(target_uri)
         assert source is not None and target is not None
-        now = _now()
+        now = utc_iso()
         state.add_alias(source_uri, target_uri)
         state.move_observations(source_uri, target_uri)
         source.status, source.updated_at = "merged", now
@@ -294,14 +294,14 @@ class SharedContextService:
         case = state.pending_case_of(source_uri)
         if case is None:
             case_id = "review_" + digest(source_uri, state.cases_of(source_uri))[:12]
-            case = Case(case_id, source_uri, "pending", candidates, _now())
+            case = Case(case_id, source_uri, "pending", candidates, utc_iso())
         case.candidates = candidates
         state.save_case(case)
 
     def _close_case(self, state: ContextState, source_uri: str, status: str, selected: str | None = None) -> None:
         case = state.pending_case_of(source_uri)
         if case is not None:
-            case.status, case.decided_at, case.selected_uri = status, _now(), selected
+            case.status, case.decided_at, case.selected_uri = status, utc_iso(), selected
             state.save_case(case)
 
     def _record(self, state: ContextState, context: Context) -> ContextRecord:
@@ -318,7 +318,7 @@ def _observation_row(uri: str, observation: Observation) -> ObservationRow:
         observation.observation_uri,
         observation.robot_uri,
         observation.reported_by,
-        _now(),
+        utc_iso(),
     )
 
 
@@ -332,7 +332,3 @@ def _rounded(breakdown: dict[str, float]) -> dict[str, float]:
 
 def _recent_first(context: Context) -> tuple[str, int]:
     return (context.updated_at, context.seq or 0)
-
-
-def _now() -> str:
-    return iso(time.time())
