@@ -9,19 +9,19 @@ WORKDIR /src
 # Dependencies first (pinned with hashes), so code changes do not reinstall them.
 COPY requirements.lock ./
 RUN python -m venv /venv && /venv/bin/pip install --require-hashes -r requirements.lock
-COPY pyproject.toml README.md ./
+COPY pyproject.toml setup.py README.md ./
 COPY backend backend
 COPY ui ui
 COPY examples examples
+COPY sparql sparql
 RUN /venv/bin/pip install --no-deps .
 
 FROM ${PYTHON_IMAGE}
 RUN useradd --create-home --uid 10001 segb && mkdir /data && chown segb /data
 COPY --from=build /venv /venv
-COPY sparql /app/sparql
+# The SPARQL queries travel inside the installed package (segb_server/sparql); SPARQL_DIR can point elsewhere.
 ENV PATH=/venv/bin:$PATH \
     PYTHONUNBUFFERED=1 \
-    SPARQL_DIR=/app/sparql \
     DATA_DIR=/data \
     HOST=0.0.0.0
 WORKDIR /app

@@ -19,9 +19,9 @@ import uvicorn
 from pydantic import ValidationError
 from tqdm import tqdm
 
-from backend.config import Settings
-from backend.services.errors import ServiceError
-from backend.store.base import Store, StoreError
+from segb_server.backend.config import Settings
+from segb_server.backend.services.errors import ServiceError
+from segb_server.backend.store.base import Store, StoreError
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -103,11 +103,13 @@ def _serve(args: argparse.Namespace) -> int:
     logging.basicConfig(level=settings.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     # httpx logs every request at INFO; the store monitor and the UI make many, and the API logs its own.
     logging.getLogger("httpx").setLevel(max(logging.WARNING, logging.getLevelName(settings.log_level)))
-    from backend.api.app import create_app
-    from ui.app import create_ui_app
+    from segb_server.backend.api.app import create_app
+    from segb_server.ui.app import create_ui_app
 
     if args.demo and args.only == "ui":
         return _fail("--demo fills the API's store: drop --only ui")
+    if args.only in (None, "api"):
+        _check_catalog(settings)
     store = _demo_store(settings) if args.demo else None
     configs = []
     if args.only in (None, "api"):
@@ -130,10 +132,18 @@ def _serve(args: argparse.Namespace) -> int:
     return 0
 
 
+def _check_catalog(settings: Settings) -> None:
+    """Fail before serving when the SPARQL queries are missing (raises CatalogError: one line, exit 2)."""
+    from segb_server.backend.services.catalog import Catalog
+    from segb_server.backend.services.container import REQUIRED_QUERIES
+
+    Catalog(settings.sparql_dir, required=REQUIRED_QUERIES)
+
+
 def _demo_store(settings: Settings) -> Store:
     """The store, opened here rather than by the app so the demo is in it before the first request."""
-    from backend.demo import load_demo
-    from backend.store.factory import open_store
+    from segb_server.backend.demo import load_demo
+    from segb_server.backend.store.factory import open_store
 
     store = open_store(settings)
     try:
@@ -168,8 +178,8 @@ async def _serve_together(servers: list[uvicorn.Server]) -> None:
 
 
 def _import(args: argparse.Namespace) -> int:
-    from backend.services.bulk_import import import_file
-    from backend.store.factory import open_store
+    from segb_server.backend.services.bulk_import import import_file
+    from segb_server.backend.store.factory import open_store
 
     settings = _settings(args)
     missing = [str(path) for path in args.files if not path.is_file()]
@@ -188,8 +198,8 @@ def _import(args: argparse.Namespace) -> int:
 
 
 def _export(args: argparse.Namespace) -> int:
-    from backend.services.export import EXPORT_FORMATS, FORMAT_NAMES, stream_graph
-    from backend.store.factory import open_store
+    from segb_server.backend.services.export import EXPORT_FORMATS, FORMAT_NAMES, stream_graph
+    from segb_server.backend.store.factory import open_store
 
     settings = _settings(args)
     store = open_store(settings)
@@ -209,7 +219,7 @@ def _export(args: argparse.Namespace) -> int:
 
 
 def _demo(args: argparse.Namespace) -> int:
-    from backend.demo import publish_demo
+    from segb_server.backend.demo import publish_demo
 
     server = args.server or f"http://127.0.0.1:{Settings().api_port}"
     print(publish_demo(server, args.token))
@@ -221,7 +231,7 @@ def _token(args: argparse.Namespace) -> int:
     import os
     from datetime import UTC, datetime
 
-    from backend.services.tokens import TokenRequestError, mint_token
+    from segb_server.backend.services.tokens import TokenRequestError, mint_token
 
     if args.secret_file is not None:
         try:

@@ -8,7 +8,9 @@ from typing import Literal
 from pydantic import Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
-PROJECT_ROOT = Path(__file__).resolve().parent.parent
+# The folder holding backend/ and sparql/: the repository's top level, or `segb_server/` once installed (the
+# queries are package data there), so the default SPARQL_DIR is right in a checkout and in a wheel.
+PACKAGE_ROOT = Path(__file__).resolve().parent.parent
 StoreKind = Literal["oxigraph", "memory", "virtuoso", "sparql"]
 
 MIN_SECRET_LENGTH = 32
@@ -103,7 +105,7 @@ class Settings(BaseSettings):
 
     # --- operations --------------------------------------------------------------------------------------
     log_level: str = Field("INFO", validation_alias="LOGGING_LEVEL", description="Log level (LOGGING_LEVEL).")
-    sparql_dir: Path = Field(PROJECT_ROOT / "sparql", description="Directory of the .rq query files.")
+    sparql_dir: Path = Field(PACKAGE_ROOT / "sparql", description="Directory of the .rq query files.")
     server_log_file: str = Field(
         "", description="JSON-lines server log; empty = DATA_DIR/logs/server.jsonl (in memory with STORE=memory)."
     )

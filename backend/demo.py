@@ -23,15 +23,15 @@ import httpx
 from pyoxigraph import RdfFormat
 from rdflib import Graph
 
-from backend.config import Settings
-from backend.services.container import build_services
-from backend.services.errors import ServiceError
-from backend.services.ingest import IngestResult
-from backend.services.payloads import RdfPayload
-from backend.store.base import Store
+from segb_server.backend.config import Settings
+from segb_server.backend.services.container import build_services
+from segb_server.backend.services.errors import ServiceError
+from segb_server.backend.services.ingest import IngestResult
+from segb_server.backend.services.payloads import RdfPayload
+from segb_server.backend.store.base import Store
 
 if TYPE_CHECKING:  # the robot code is imported when a demo is built, not whenever the CLI starts
-    from examples.emotion_mirror.mission import EmotionMirrorMission
+    from segb_server.examples.emotion_mirror.mission import EmotionMirrorMission
 
 logger = logging.getLogger("segb.demo")
 
@@ -110,9 +110,9 @@ def publish_demo(server: str, token: str | None = None) -> str:
 def _run_missions() -> list[EmotionMirrorMission]:
     from semantic_log_generator import RobotStateSnapshot
 
-    from examples.emotion_mirror.driver import play
-    from examples.emotion_mirror.mission import EmotionMirrorMission, RobotConfig
-    from examples.emotion_mirror.script import Utterance, default_script
+    from segb_server.examples.emotion_mirror.driver import play
+    from segb_server.examples.emotion_mirror.mission import EmotionMirrorMission, RobotConfig
+    from segb_server.examples.emotion_mirror.script import Utterance, default_script
 
     script = default_script()
     ari = EmotionMirrorMission.start(

@@ -197,7 +197,7 @@ def segb_import(data_dir: Path, files: list[Path]) -> None:
         [
             sys.executable,
             "-m",
-            "backend.cli",
+            "segb_server.backend.cli",
             "import",
             "--store",
             "oxigraph",

@@ -73,7 +73,7 @@ def segb_server(store: str, data_dir: Path, env: dict[str, str] | None = None) -
     port = free_port()
     argv = [
         "-m",
-        "backend.cli",
+        "segb_server.backend.cli",
         "serve",
         "--only",
         "api",

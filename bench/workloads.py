@@ -13,7 +13,7 @@ from datetime import UTC, datetime, timedelta
 
 from rdflib import Graph
 
-from examples.emotion_mirror.mission import EmotionMirrorMission, RobotConfig
+from segb_server.examples.emotion_mirror.mission import EmotionMirrorMission, RobotConfig
 
 T0 = datetime(2026, 3, 10, 9, 0, tzinfo=UTC)
 EXPRESSIONS = ["happy", "sad", "surprised", "angry", "happy", "afraid"]

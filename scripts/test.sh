@@ -1,5 +1,7 @@
 #!/usr/bin/env bash
-# Install what the tests need (Debian packages when missing, the project with its test extras), run pytest.
+# The README's test command. Installs what the tests need — Debian's Virtuoso and Chromium when missing, the
+# pinned Python packages from requirements-test.lock (hash-checked), the project itself — then runs pytest.
+# Extra arguments go to pytest, e.g. `./scripts/test.sh -m "not browser and not virtuoso"`.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -16,5 +18,7 @@ if ((${#missing[@]})); then
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
 fi
 
-python3 -m pip install -q --disable-pip-version-check -e '.[test]'
+pip=(python3 -m pip install -q --disable-pip-version-check)
+"${pip[@]}" --require-hashes -r requirements-test.lock
+"${pip[@]}" --no-deps -e .
 exec python3 -m pytest "$@"

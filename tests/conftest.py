@@ -2,29 +2,66 @@
 
 from __future__ import annotations
 
+import os
+import tempfile
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from hypothesis import settings as hypothesis_settings
 
-from backend.api.app import create_app
-from backend.config import Settings
-from backend.store.base import Store
-from backend.store.oxigraph import OxigraphStore
-from backend.store.virtuoso import VirtuosoStore
+from segb_server.backend.api.app import create_app
+from segb_server.backend.config import Settings
+from segb_server.backend.store.base import Store
+from segb_server.backend.store.oxigraph import OxigraphStore
+from segb_server.backend.store.virtuoso import VirtuosoStore
 from tests.support.live_server import LiveServer
 from tests.support.virtuoso import VirtuosoProcess
+from tests.support.write_guard import differences, redirect_home, take
 
-SHARED = Path(__file__).resolve().parents[2] / "shared"
-FIXTURES = SHARED / "fixtures"
+ROOT = Path(__file__).resolve().parents[1]
+
+FIXTURES = Path(__file__).resolve().parent / "fixtures"  # Turtle from the real robot client (see its README)
 STORE_KINDS = ["oxigraph", pytest.param("virtuoso", marks=pytest.mark.virtuoso)]
 
 
+# Property tests keep no example database: the suite writes nothing outside temporary directories.
+hypothesis_settings.register_profile("segb", database=None, deadline=None)
+hypothesis_settings.load_profile("segb")
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    real_home = redirect_home()
+    config.stash[_GUARD] = (real_home, take(ROOT, real_home))
+
+
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    real_home, before = session.config.stash[_GUARD]
+    problems = differences(before, take(ROOT, real_home))
+    if problems:
+        reporter = session.config.pluginmanager.get_plugin("terminalreporter")
+        lines = "\n".join(f"  {problem}" for problem in problems)
+        message = f"the test run wrote outside temporary directories:\n{lines}"
+        if reporter is not None:
+            reporter.write_line(message, red=True)
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+
+def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
+    if ARTIFACTS.is_dir() and any(ARTIFACTS.iterdir()):
+        terminalreporter.write_line(f"browser screenshots: {ARTIFACTS}")
+
+
+_GUARD = pytest.StashKey[tuple[Path, object]]()
+_DATA_ROOT = Path(tempfile.mkdtemp(prefix="segb-test-data-"))
+
+
 def make_settings(**overrides: object) -> Settings:
-    """Settings that ignore the developer's environment and `.env`."""
+    """Settings that ignore the developer's environment and `.env`, with a data directory of their own."""
     values: dict[str, object] = {"secret_key": "", "store": "memory", "cors_origins": ""}
     values.update(overrides)
+    values.setdefault("data_dir", Path(tempfile.mkdtemp(dir=_DATA_ROOT)))
     return Settings(_env_file=None, **values)  # type: ignore[call-arg]
 
 
@@ -82,7 +119,9 @@ def memory_api(memory_store: Store) -> Iterator[LiveServer]:
 
 # --- the web UI and a real browser --------------------------------------------------------------------
 
-ARTIFACTS = Path(__file__).resolve().parents[1] / "test-artifacts"
+# Screenshots of every browser test's final state, kept as evidence outside the working tree
+# (SEGB_TEST_ARTIFACTS chooses where; by default a temporary directory that the run prints).
+ARTIFACTS = Path(os.environ.get("SEGB_TEST_ARTIFACTS") or tempfile.mkdtemp(prefix="segb-test-artifacts-"))
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = [
     "--no-sandbox",
@@ -105,7 +144,7 @@ class UiStack:
 
 
 def start_ui_stack(store: Store, **settings: object) -> Iterator[UiStack]:
-    from ui.app import create_ui_app
+    from segb_server.ui.app import create_ui_app
 
     with LiveServer(create_app(make_settings(**settings), store=store)) as api:
         ui_settings = make_settings(backend_url=api.url, **settings)

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 from pydantic import ValidationError
 
-from backend.config import Settings
+from segb_server.backend.config import Settings
 from tests.conftest import make_settings
 
 README = (Path(__file__).resolve().parents[1] / "README.md").read_text()

@@ -12,14 +12,14 @@ from fastapi.responses import Response
 from fastapi.staticfiles import StaticFiles
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
-from backend.config import Settings
-from ui.api_client import BackendClient, BackendError, BackendUnavailable
-from ui.csrf import CsrfCookieMiddleware, CsrfRejected
-from ui.forms import BadForm
-from ui.pages import error_page
-from ui.routes import graph, health, home, ledger, logs, query, reports, session, shared_context
-from ui.security import SecurityHeaders
-from ui.session import ViewerCache, ViewerMiddleware
+from segb_server.backend.config import Settings
+from segb_server.ui.api_client import BackendClient, BackendError, BackendUnavailable
+from segb_server.ui.csrf import CsrfCookieMiddleware, CsrfRejected
+from segb_server.ui.forms import BadForm
+from segb_server.ui.pages import error_page
+from segb_server.ui.routes import graph, health, home, ledger, logs, query, reports, session, shared_context
+from segb_server.ui.security import SecurityHeaders
+from segb_server.ui.session import ViewerCache, ViewerMiddleware
 
 logger = logging.getLogger("segb.ui")
 

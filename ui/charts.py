@@ -10,7 +10,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from datetime import datetime
 
-from ui.display import parse_time, short_iri, when
+from segb_server.ui.display import parse_time, short_iri, when
 
 # Big Six categories get fixed, distinguishable colours; any other category a robot invents gets a stable
 # colour derived from its name.

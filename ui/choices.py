@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from fastapi import Request
 
-from ui.pages import backend, token
+from segb_server.ui.pages import backend, token
 
 
 async def participant_choices(request: Request) -> dict[str, dict[str, str]]:

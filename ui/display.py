@@ -5,7 +5,7 @@ from __future__ import annotations
 from datetime import datetime
 from urllib.parse import urlencode
 
-from backend.services.namespaces import compact
+from segb_server.backend.services.namespaces import compact
 
 
 def short_iri(value: object) -> str:

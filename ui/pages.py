@@ -9,10 +9,10 @@ from fastapi import Request
 from fastapi.responses import HTMLResponse, JSONResponse, Response
 from fastapi.templating import Jinja2Templates
 
-from ui.api_client import BackendClient
-from ui.csrf import csrf_token
-from ui.display import FILTERS
-from ui.session import TOKEN_COOKIE, Viewer
+from segb_server.ui.api_client import BackendClient
+from segb_server.ui.csrf import csrf_token
+from segb_server.ui.display import FILTERS
+from segb_server.ui.session import TOKEN_COOKIE, Viewer
 
 TEMPLATES = Jinja2Templates(directory=str(Path(__file__).parent / "templates"))
 TEMPLATES.env.filters.update(FILTERS)

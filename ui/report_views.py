@@ -6,7 +6,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from ui.charts import emotion_charts, model_usage_chart
+from segb_server.ui.charts import emotion_charts, model_usage_chart
 
 Row = Mapping[str, Any]
 

@@ -10,7 +10,7 @@ from starlette.middleware.base import BaseHTTPMiddleware, RequestResponseEndpoin
 from starlette.requests import Request
 from starlette.responses import Response
 
-from ui.api_client import BackendClient, BackendError, BackendUnavailable
+from segb_server.ui.api_client import BackendClient, BackendError, BackendUnavailable
 
 TOKEN_COOKIE = "segb_token"
 ALL_ROLES = frozenset({"logger", "auditor", "admin"})

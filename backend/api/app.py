@@ -10,10 +10,11 @@ import anyio
 from fastapi import FastAPI
 from fastapi.middleware.cors import CORSMiddleware
 
-from backend import __version__
-from backend.api.errors import document_error_shape, install_error_handlers
-from backend.api.request_context import RequestContext
-from backend.api.routes import (
+from segb_server.backend import __version__
+from segb_server.backend.api.docs import install_docs
+from segb_server.backend.api.errors import document_error_shape, install_error_handlers
+from segb_server.backend.api.request_context import RequestContext
+from segb_server.backend.api.routes import (
     auth,
     events,
     graph,
@@ -26,12 +27,12 @@ from backend.api.routes import (
     sparql,
     sparql_examples,
 )
-from backend.config import Settings
-from backend.services.container import build_services
-from backend.services.server_log import ServerLog
-from backend.services.store_monitor import StoreMonitor
-from backend.store.base import Store
-from backend.store.factory import open_store
+from segb_server.backend.config import Settings
+from segb_server.backend.services.container import build_services
+from segb_server.backend.services.server_log import ServerLog
+from segb_server.backend.services.store_monitor import StoreMonitor
+from segb_server.backend.store.base import Store
+from segb_server.backend.store.factory import open_store
 
 logger = logging.getLogger("segb.api")
 
@@ -93,7 +94,10 @@ def create_app(settings: Settings | None = None, store: Store | None = None) -> 
         description=DESCRIPTION,
         lifespan=lifespan,
         license_info={"name": "Apache-2.0"},
+        docs_url=None,
+        redoc_url=None,
     )
+    install_docs(app)
     install_error_handlers(app)
     document_error_shape(app)
     if settings.cors_origin_list:

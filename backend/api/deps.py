@@ -7,10 +7,10 @@ from typing import Annotated
 
 from fastapi import Depends, Request
 
-from backend.api.security import Principal, authorize, principal_from_header
-from backend.config import Settings
-from backend.services.container import Services
-from backend.services.errors import PayloadTooLarge
+from segb_server.backend.api.security import Principal, authorize, principal_from_header
+from segb_server.backend.config import Settings
+from segb_server.backend.services.container import Services
+from segb_server.backend.services.errors import PayloadTooLarge
 
 # Dependencies are `async def` on purpose: they do no I/O, and FastAPI would run plain `def` ones in the
 # thread pool, costing a thread hop each on every request.

@@ -9,10 +9,10 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
-from backend.api.security import AuthenticationFailed, PermissionDenied
-from backend.services import errors as service_errors
-from backend.services.export import NotAcceptable
-from backend.store.base import QueryTimeout, StoreError, StoreRejectedQuery, StoreUnavailable
+from segb_server.backend.api.security import AuthenticationFailed, PermissionDenied
+from segb_server.backend.services import errors as service_errors
+from segb_server.backend.services.export import NotAcceptable
+from segb_server.backend.store.base import QueryTimeout, StoreError, StoreRejectedQuery, StoreUnavailable
 
 logger = logging.getLogger("segb.api")
 

@@ -10,10 +10,10 @@ from pathlib import Path
 
 from pyoxigraph import RdfFormat, parse
 
-from backend.services.errors import InvalidParameter
-from backend.services.rdf_parsing import invalid_rdf, parse_triples
-from backend.services.skolem import might_contain_blank_nodes
-from backend.store.base import Store
+from segb_server.backend.services.errors import InvalidParameter
+from segb_server.backend.services.rdf_parsing import invalid_rdf, parse_triples
+from segb_server.backend.services.skolem import might_contain_blank_nodes
+from segb_server.backend.store.base import Store
 
 BATCH_TRIPLES = 20_000
 FILE_FORMATS = {".ttl": RdfFormat.TURTLE, ".turtle": RdfFormat.TURTLE, ".nt": RdfFormat.N_TRIPLES}

@@ -10,7 +10,7 @@ A query file opens with a header of comment lines, then the query:
     PREFIX ...
     SELECT ... WHERE { ... FILTER (!BOUND(?param_robot) || ?robot = ?param_robot) ... }
 
-Parameters reach the query as bound values (`backend.store.terms.bind_values`), never as text. Parameter
+Parameters reach the query as bound values (`segb_server.backend.store.terms.bind_values`), never as text. Parameter
 `robot` is the variable `?param_robot`, so a filter's value never collides with the column it filters; a
 parameter that is not given is UNDEF (so `!BOUND(?param_x)` switches its filter off) unless it declares a
 default. Paging (`LIMIT`/`OFFSET`) is appended by `paged()`, so catalog queries carry no LIMIT of their own.
@@ -30,8 +30,8 @@ from typing import Literal as TypingLiteral
 
 from pyoxigraph import Literal, NamedNode
 
-from backend.services.errors import InvalidParameter, NotFound
-from backend.store.base import Bindings, Term
+from segb_server.backend.services.errors import InvalidParameter, NotFound, ServiceError
+from segb_server.backend.store.base import Bindings, Term
 
 ParameterType = TypingLiteral["iri", "dateTime", "decimal", "integer", "string"]
 XSD = "http://www.w3.org/2001/XMLSchema#"
@@ -154,16 +154,36 @@ def _resolve(name: str, headers: dict[str, _Header]) -> CatalogQuery:
     return CatalogQuery(name, header.meta.get("title", name), header.meta.get("description", ""), text, parameters)
 
 
-class Catalog:
-    """All queries of a `sparql/` directory, loaded once at start-up."""
+class CatalogError(ServiceError):
+    """The query directory is missing, empty, or lacks a query the server needs: the server cannot start."""
 
-    def __init__(self, directory: Path) -> None:
+    code = "catalog_error"
+
+
+class Catalog:
+    """All queries of a `sparql/` directory, loaded once at start-up.
+
+    `required` names queries the server cannot work without; a missing one (or an empty directory, as a
+    packaging mistake would leave) stops start-up with a CatalogError naming the directory."""
+
+    def __init__(self, directory: Path, required: tuple[str, ...] = ()) -> None:
         self.directory = directory
         headers = {
             path.relative_to(directory).with_suffix("").as_posix(): _read_header(path.read_text(encoding="utf-8"))
             for path in sorted(directory.rglob("*.rq"))
         }
+        if not headers:
+            raise CatalogError(f"No SPARQL queries (.rq files) in {directory}: set SPARQL_DIR to the sparql/ folder.")
         self._queries = {name: _resolve(name, headers) for name in headers}
+        missing = [name for name in required if not self._has(name)]
+        if missing:
+            raise CatalogError(f"The SPARQL folder {directory} lacks {', '.join(missing)}.")
+
+    def _has(self, name: str) -> bool:
+        """A query of that name, or with a trailing `/`, any query in that folder."""
+        if name.endswith("/"):
+            return any(query.startswith(name) for query in self._queries)
+        return name in self._queries
 
     def get(self, name: str) -> CatalogQuery:
         try:

@@ -4,18 +4,21 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from backend.config import Settings
-from backend.services.catalog import Catalog
-from backend.services.explain import ExplainService
-from backend.services.graph import GraphService
-from backend.services.ingest import IngestService
-from backend.services.ledger import LEDGER_FILE, Ledger
-from backend.services.reports import ReportService
-from backend.services.result_cache import OWNED_STORES, DataVersion, ResultCache
-from backend.services.shared_context.policy import Policy
-from backend.services.shared_context.service import SharedContextService
-from backend.services.shared_context.state import STATE_FILE
-from backend.store.base import Store
+from segb_server.backend.config import Settings
+from segb_server.backend.services.catalog import Catalog
+from segb_server.backend.services.explain import ExplainService
+from segb_server.backend.services.graph import GraphService
+from segb_server.backend.services.ingest import IngestService
+from segb_server.backend.services.ledger import LEDGER_FILE, Ledger
+from segb_server.backend.services.reports import ReportService
+from segb_server.backend.services.result_cache import OWNED_STORES, DataVersion, ResultCache
+from segb_server.backend.services.shared_context.policy import Policy
+from segb_server.backend.services.shared_context.service import SharedContextService
+from segb_server.backend.services.shared_context.state import STATE_FILE
+from segb_server.backend.store.base import Store
+
+# What the reports, the graph explorer and the explanations run; without them the server must not start.
+REQUIRED_QUERIES = ("reports/", "graph/elements", "graph/resource-in", "graph/resource-out")
 
 
 @dataclass
@@ -36,7 +39,7 @@ class Services:
 
 
 def build_services(settings: Settings, store: Store) -> Services:
-    catalog = Catalog(settings.sparql_dir)
+    catalog = Catalog(settings.sparql_dir, required=REQUIRED_QUERIES)
     version = DataVersion()
     cache = ResultCache(version, enabled=store.kind in OWNED_STORES)
     graph = GraphService(catalog, store, cache)

@@ -14,9 +14,9 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
-from backend.services.errors import NotFound
-from backend.services.graph import GraphService, local_name
-from backend.services.namespaces import PREFIXES
+from segb_server.backend.services.errors import NotFound
+from segb_server.backend.services.graph import GraphService, local_name
+from segb_server.backend.services.namespaces import PREFIXES
 
 SEGB, PROV, SCHEMA, ORO = PREFIXES["segb"], PREFIXES["prov"], PREFIXES["schema"], PREFIXES["oro"]
 ONYX, OA, MLS, SOSA = PREFIXES["onyx"], PREFIXES["oa"], PREFIXES["mls"], PREFIXES["sosa"]

@@ -7,10 +7,10 @@ from dataclasses import dataclass
 
 from pyoxigraph import NamedNode, Quad, RdfFormat, serialize
 
-from backend.services.errors import ServiceError
-from backend.services.media_types import accepted_media_types
-from backend.services.namespaces import PREFIXES
-from backend.store.base import Store
+from segb_server.backend.services.errors import ServiceError
+from segb_server.backend.services.media_types import accepted_media_types
+from segb_server.backend.services.namespaces import PREFIXES
+from segb_server.backend.store.base import Store
 
 BATCH_TRIPLES = 10_000
 

@@ -14,13 +14,13 @@ from datetime import datetime
 
 from pyoxigraph import Literal, NamedNode
 
-from backend.services.catalog import Catalog
-from backend.services.errors import InvalidParameter
-from backend.services.kinds import KINDS, Kind, kind_of
-from backend.services.namespaces import PREFIXES, compact
-from backend.services.result_cache import DataVersion, ResultCache
-from backend.services.term_values import iso_time, json_value
-from backend.store.base import Store, select
+from segb_server.backend.services.catalog import Catalog
+from segb_server.backend.services.errors import InvalidParameter
+from segb_server.backend.services.kinds import KINDS, Kind, kind_of
+from segb_server.backend.services.namespaces import PREFIXES, compact
+from segb_server.backend.services.result_cache import DataVersion, ResultCache
+from segb_server.backend.services.term_values import iso_time, json_value
+from segb_server.backend.store.base import Store, select
 
 RDF_TYPE = PREFIXES["rdf"] + "type"
 # Display name predicates, best first.

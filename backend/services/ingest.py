@@ -9,12 +9,12 @@ from dataclasses import dataclass
 
 from pyoxigraph import Quad
 
-from backend.services.group_commit import GroupCommit
-from backend.services.ledger import Entry, Ledger
-from backend.services.payloads import RdfPayload
-from backend.services.rdf_parsing import parse_triples
-from backend.services.result_cache import DataVersion
-from backend.store.base import Store
+from segb_server.backend.services.group_commit import GroupCommit
+from segb_server.backend.services.ledger import Entry, Ledger
+from segb_server.backend.services.payloads import RdfPayload
+from segb_server.backend.services.rdf_parsing import parse_triples
+from segb_server.backend.services.result_cache import DataVersion
+from segb_server.backend.store.base import Store
 
 logger = logging.getLogger("segb.ingest")
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Collection
 from typing import Literal
 
-from backend.services.namespaces import PREFIXES
+from segb_server.backend.services.namespaces import PREFIXES
 
 Kind = Literal["robot", "human", "message", "emotion", "model", "shared-event", "state", "activity", "other"]
 KINDS: tuple[Kind, ...] = (

@@ -18,7 +18,7 @@ from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Literal
 
-from backend.services.clock import utc_iso
+from segb_server.backend.services.clock import utc_iso
 
 LEDGER_FILE = "ledger.sqlite3"
 GENESIS_HASH = "0" * 64

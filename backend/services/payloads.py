@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from pyoxigraph import RdfFormat
 
-from backend.services.errors import EmptyPayload, InvalidPayload, PayloadTooLarge, UnsupportedMediaType
+from segb_server.backend.services.errors import EmptyPayload, InvalidPayload, PayloadTooLarge, UnsupportedMediaType
 
 RAW_RDF_TYPES = {
     "text/turtle": RdfFormat.TURTLE,

@@ -6,8 +6,8 @@ from itertools import islice
 
 from pyoxigraph import Quad, RdfFormat, parse
 
-from backend.services.errors import InvalidRdf, PayloadTooLarge
-from backend.services.skolem import might_contain_blank_nodes, skolemize
+from segb_server.backend.services.errors import InvalidRdf, PayloadTooLarge
+from segb_server.backend.services.skolem import might_contain_blank_nodes, skolemize
 
 SYNTAX_NAMES = {RdfFormat.TURTLE: "Turtle", RdfFormat.N_TRIPLES: "N-Triples"}
 

@@ -6,11 +6,11 @@ import csv
 import io
 from dataclasses import dataclass
 
-from backend.services.catalog import Catalog, CatalogQuery, paged
-from backend.services.errors import NotFound
-from backend.services.result_cache import DataVersion, ResultCache
-from backend.services.term_values import JsonValue, json_value
-from backend.store.base import Bindings, Store, select
+from segb_server.backend.services.catalog import Catalog, CatalogQuery, paged
+from segb_server.backend.services.errors import NotFound
+from segb_server.backend.services.result_cache import DataVersion, ResultCache
+from segb_server.backend.services.term_values import JsonValue, json_value
+from segb_server.backend.store.base import Bindings, Store, select
 
 FOLDER = "reports"
 

@@ -16,8 +16,8 @@ from logging.handlers import RotatingFileHandler
 from pathlib import Path
 from typing import Any
 
-from backend.config import Settings
-from backend.services.clock import utc_iso
+from segb_server.backend.config import Settings
+from segb_server.backend.services.clock import utc_iso
 
 ROOT_LOGGER = "segb"
 LEVELS = ("DEBUG", "INFO", "WARNING", "ERROR", "CRITICAL")

@@ -22,8 +22,8 @@ from rdflib.plugins.sparql.parser import expandUnicodeEscapes, parseQuery, parse
 from rdflib.plugins.sparql.parserutils import CompValue
 from rdflib.term import URIRef
 
-from backend.services.errors import InvalidQuery, PayloadTooLarge
-from backend.store.query_form import QueryForm, query_form
+from segb_server.backend.services.errors import InvalidQuery, PayloadTooLarge
+from segb_server.backend.store.query_form import QueryForm, query_form
 
 MAX_QUERY_BYTES = 100_000
 

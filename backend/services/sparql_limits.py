@@ -10,7 +10,7 @@ from typing import TypeVar
 
 from pyoxigraph import QueryBoolean, QueryResultsFormat, QuerySolutions, Triple, parse_query_results
 
-from backend.store.base import QueryResult, QueryTimeout, Store, StoreError
+from segb_server.backend.store.base import QueryResult, QueryTimeout, Store, StoreError
 
 Item = TypeVar("Item")
 

@@ -6,7 +6,7 @@ import logging
 
 import anyio
 
-from backend.store.base import Store, StoreError
+from segb_server.backend.store.base import Store, StoreError
 
 logger = logging.getLogger("segb.store")
 

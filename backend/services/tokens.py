@@ -9,8 +9,8 @@ from dataclasses import dataclass
 
 import jwt
 
-from backend.api.security import ROLES
-from backend.config import MIN_SECRET_LENGTH
+from segb_server.backend.api.security import ROLES
+from segb_server.backend.config import MIN_SECRET_LENGTH
 
 MIN_LIFETIME_SECONDS = 60
 MAX_LIFETIME_SECONDS = 30 * 24 * 3600

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import httpx
 
-from backend.config import Settings
-from backend.store.base import Store
-from backend.store.oxigraph import OxigraphStore
-from backend.store.sparql_http import SparqlHttpStore
-from backend.store.virtuoso import VirtuosoStore
+from segb_server.backend.config import Settings
+from segb_server.backend.store.base import Store
+from segb_server.backend.store.oxigraph import OxigraphStore
+from segb_server.backend.store.sparql_http import SparqlHttpStore
+from segb_server.backend.store.virtuoso import VirtuosoStore
 
 
 def open_store(settings: Settings) -> Store:

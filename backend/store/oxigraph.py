@@ -10,8 +10,8 @@ from pathlib import Path
 from pyoxigraph import DefaultGraph, Quad, RdfFormat
 from pyoxigraph import Store as OxStore
 
-from backend.store.base import Bindings, QueryResult, StoreRejectedQuery, StoreUnavailable
-from backend.store.terms import bind_values
+from segb_server.backend.store.base import Bindings, QueryResult, StoreRejectedQuery, StoreUnavailable
+from segb_server.backend.store.terms import bind_values
 
 _COUNT = "SELECT (COUNT(*) AS ?n) WHERE { ?s ?p ?o }"
 

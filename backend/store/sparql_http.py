@@ -10,7 +10,7 @@ from itertools import islice
 import httpx
 from pyoxigraph import QueryResultsFormat, QuerySolutions, RdfFormat, parse, parse_query_results
 
-from backend.store.base import (
+from segb_server.backend.store.base import (
     Bindings,
     Quad,
     QueryResult,
@@ -19,9 +19,9 @@ from backend.store.base import (
     StoreRejectedQuery,
     StoreUnavailable,
 )
-from backend.store.known_triples import KnownTriples, triple_key
-from backend.store.query_form import query_form
-from backend.store.terms import bind_values
+from segb_server.backend.store.known_triples import KnownTriples, triple_key
+from segb_server.backend.store.query_form import query_form
+from segb_server.backend.store.terms import bind_values
 
 logger = logging.getLogger("segb.store")
 

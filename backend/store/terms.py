@@ -6,7 +6,7 @@ import re
 
 from pyoxigraph import BlankNode
 
-from backend.store.base import Bindings
+from segb_server.backend.store.base import Bindings
 
 _TOP_LEVEL_WHERE = re.compile(r"\bWHERE\s*\{", re.IGNORECASE)
 _VARIABLE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")

@@ -6,8 +6,8 @@ import re
 
 import httpx
 
-from backend.store.base import StoreError
-from backend.store.sparql_http import SparqlHttpStore
+from segb_server.backend.store.base import StoreError
+from segb_server.backend.store.sparql_http import SparqlHttpStore
 
 # Virtuoso reports what a SPARQL update did as a one-cell result, e.g.
 # "Insert into <http://amor-segb/events>, 57 (or less) triples -- done".

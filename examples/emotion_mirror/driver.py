@@ -14,8 +14,8 @@ from typing import Literal
 
 from rdflib import URIRef
 
-from examples.emotion_mirror.mission import EmotionMirrorMission
-from examples.emotion_mirror.script import Expression, Script
+from segb_server.examples.emotion_mirror.mission import EmotionMirrorMission
+from segb_server.examples.emotion_mirror.script import Expression, Script
 
 SCHEMA_TEXT = URIRef("http://schema.org/text")
 

@@ -13,7 +13,7 @@ from typing import Any
 
 import httpx
 
-from examples.emotion_mirror.mission import Replier, fallback_replier
+from segb_server.examples.emotion_mirror.mission import Replier, fallback_replier
 
 DEFAULT_HOST = "http://127.0.0.1:11434"
 DEFAULT_MODEL = "llama3.2"

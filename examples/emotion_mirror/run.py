@@ -1,4 +1,4 @@
-"""Run the emotion-mirror robot against a SEGB server: `python -m examples.emotion_mirror.run --server URL`.
+"""Run the emotion-mirror robot against a SEGB server (`python3 -m segb_server.examples.emotion_mirror.run`).
 
 Replays a script (the built-in one with Maria, or `--script file.json`) into the mission, publishing the
 robot's whole graph with `SEGBPublisher` after every event, and prints one line per event.
@@ -18,10 +18,10 @@ from requests import RequestException
 from semantic_log_generator import SEGBPublisher, SemanticSEGBLogger
 from semantic_log_generator.shared_context import HTTPSharedContextResolver
 
-from examples.emotion_mirror.driver import play
-from examples.emotion_mirror.mission import EmotionMirrorMission, RobotConfig
-from examples.emotion_mirror.replier import DEFAULT_MODEL, ollama_replier
-from examples.emotion_mirror.script import Script, ScriptError, default_script, load_script
+from segb_server.examples.emotion_mirror.driver import play
+from segb_server.examples.emotion_mirror.mission import EmotionMirrorMission, RobotConfig
+from segb_server.examples.emotion_mirror.replier import DEFAULT_MODEL, ollama_replier
+from segb_server.examples.emotion_mirror.script import Script, ScriptError, default_script, load_script
 
 DEFAULT_SERVER = "http://127.0.0.1:5000"
 
@@ -46,7 +46,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="python -m examples.emotion_mirror.run", description="Replay a conversation into the emotion-mirror robot."
+        prog="python3 -m segb_server.examples.emotion_mirror.run",
+        description="Replay a conversation into the emotion-mirror robot.",
     )
     parser.add_argument("--server", default=DEFAULT_SERVER, help=f"SEGB API base URL (default {DEFAULT_SERVER})")
     parser.add_argument("--token", help="bearer token with the logger role, when the server has SECRET_KEY set")

@@ -13,8 +13,8 @@ import httpx
 import jwt
 import pytest
 
-from backend.api.app import create_app
-from backend.services.tokens import mint_token
+from segb_server.backend.api.app import create_app
+from segb_server.backend.services.tokens import mint_token
 from tests.conftest import make_settings
 from tests.support.live_server import LiveServer
 

@@ -10,8 +10,8 @@ import schemathesis
 from hypothesis import HealthCheck, settings
 from schemathesis.specs.openapi.checks import response_schema_conformance
 
-from backend.api.app import create_app
-from backend.store.oxigraph import OxigraphStore
+from segb_server.backend.api.app import create_app
+from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.conftest import make_settings
 from tests.support.live_server import LiveServer
 from tests.support.scenarios import lobby

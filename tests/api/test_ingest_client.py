@@ -8,7 +8,7 @@ import requests
 from pyoxigraph import RdfFormat
 from semantic_log_generator import SEGBPublisher
 
-from backend.store.base import Store
+from segb_server.backend.store.base import Store
 from tests.conftest import FIXTURES
 from tests.support.graphs import triples, value_triples
 from tests.support.live_server import LiveServer
@@ -84,7 +84,7 @@ def test_client_delete_all_clears_the_events_graph(api: LiveServer, store: Store
 
 
 def test_offline_queue_is_flushed_once_the_server_is_back(tmp_path, memory_store: Store) -> None:
-    from backend.api.app import create_app
+    from segb_server.backend.api.app import create_app
     from tests.conftest import make_settings
 
     scenario = lobby()

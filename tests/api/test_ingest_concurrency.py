@@ -12,7 +12,7 @@ import httpx
 import pytest
 from pyoxigraph import RdfFormat, parse
 
-from backend.api.app import create_app
+from segb_server.backend.api.app import create_app
 from tests.conftest import make_settings
 from tests.support.live_server import LiveServer
 

@@ -9,8 +9,8 @@ from collections.abc import Iterator
 import httpx
 import pytest
 
-from backend.api.app import create_app
-from backend.store.base import Store
+from segb_server.backend.api.app import create_app
+from segb_server.backend.store.base import Store
 from tests.conftest import make_settings
 from tests.support.live_server import LiveServer
 

@@ -14,8 +14,8 @@ import httpx
 import pytest
 from semantic_log_generator import SEGBPublisher
 
-from backend.api.app import create_app
-from backend.store.oxigraph import OxigraphStore
+from segb_server.backend.api.app import create_app
+from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.conftest import make_settings, virtuoso_store
 from tests.support.live_server import LiveServer
 from tests.support.scenarios import Scenario, lobby

@@ -7,7 +7,7 @@ import logging
 import httpx
 import pytest
 
-from backend.api.app import create_app
+from segb_server.backend.api.app import create_app
 from tests.conftest import make_settings
 from tests.support.live_server import LiveServer
 

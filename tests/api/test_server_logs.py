@@ -11,9 +11,9 @@ from pathlib import Path
 import httpx
 import pytest
 
-from backend.api.app import create_app
-from backend.services.tokens import mint_token
-from backend.store.base import Store
+from segb_server.backend.api.app import create_app
+from segb_server.backend.services.tokens import mint_token
+from segb_server.backend.store.base import Store
 from tests.conftest import make_settings
 from tests.support.live_server import LiveServer
 

@@ -15,7 +15,7 @@ from semantic_log_generator import SemanticSEGBLogger
 from semantic_log_generator.publisher import SEGBPublisher
 from semantic_log_generator.shared_context import HTTPSharedContextResolver
 
-from backend.api.app import create_app
+from segb_server.backend.api.app import create_app
 from tests.conftest import make_settings
 from tests.support.live_server import LiveServer
 

@@ -17,10 +17,10 @@ from pyoxigraph import BlankNode, Literal, NamedNode, RdfFormat, Triple, parse
 from rdflib import Graph
 from rdflib.plugins.stores.sparqlstore import SPARQLStore
 
-from backend.api.app import create_app
-from backend.services.sparql_guard import MAX_QUERY_BYTES
-from backend.services.tokens import mint_token
-from backend.store.base import Store
+from segb_server.backend.api.app import create_app
+from segb_server.backend.services.sparql_guard import MAX_QUERY_BYTES
+from segb_server.backend.services.tokens import mint_token
+from segb_server.backend.store.base import Store
 from tests.conftest import make_settings
 from tests.support.live_server import LiveServer
 from tests.support.scenarios import Scenario, lobby

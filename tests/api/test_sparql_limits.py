@@ -13,8 +13,8 @@ import httpx
 import pytest
 from pyoxigraph import Literal, NamedNode, Quad, RdfFormat, parse
 
-from backend.api.app import create_app
-from backend.store.base import Store
+from segb_server.backend.api.app import create_app
+from segb_server.backend.store.base import Store
 from tests.conftest import make_settings
 from tests.support.live_server import LiveServer
 

@@ -16,10 +16,12 @@ from tests.conftest import FIXTURES
 from tests.support.graphs import value_triples
 from tests.support.net import free_port
 
+SEGB = [sys.executable, "-m", "segb_server.backend.cli"]  # the `segb` command of this interpreter
+
 
 def segb(*args: str, env: dict[str, str] | None = None, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [sys.executable, "-m", "backend.cli", *args],
+        [*SEGB, *args],
         capture_output=True,
         text=True,
         timeout=120,
@@ -65,7 +67,7 @@ def test_import_reports_bad_files_clearly(tmp_path: Path) -> None:
 def test_serve_runs_api_and_ui_and_stops_on_sigterm(tmp_path: Path) -> None:
     api_port, ui_port = free_port(), free_port()
     process = subprocess.Popen(
-        [sys.executable, "-m", "backend.cli", "serve", "--data-dir", str(tmp_path)],
+        [*SEGB, "serve", "--data-dir", str(tmp_path)],
         env=clean_env({"API_PORT": str(api_port), "UI_PORT": str(ui_port)}),
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
@@ -91,7 +93,18 @@ def test_flags_override_environment_and_bad_settings_fail_fast(tmp_path: Path) -
 
     port = free_port()
     process = subprocess.Popen(
-        [sys.executable, "-m", "backend.cli", "serve", "--only", "api", "--store", "memory", "--api-port", str(port)],
+        [
+            sys.executable,
+            "-m",
+            "segb_server.backend.cli",
+            "serve",
+            "--only",
+            "api",
+            "--store",
+            "memory",
+            "--api-port",
+            str(port),
+        ],
         env=clean_env({"API_PORT": "1", "STORE": "virtuoso"}),
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,

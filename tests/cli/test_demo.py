@@ -4,14 +4,13 @@ from __future__ import annotations
 
 import signal
 import subprocess
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import httpx
 
-from tests.cli.test_cli import clean_env, segb, wait_for
+from tests.cli.test_cli import SEGB, clean_env, segb, wait_for
 from tests.support.live_server import LiveServer
 from tests.support.net import free_port
 from tests.support.sparql import select_bindings
@@ -106,7 +105,7 @@ def serve_demo(data_dir: Path) -> Served:
     """Start `segb serve --demo` on free ports, read what a newcomer would see, stop it."""
     api_port, ui_port = free_port(), free_port()
     process = subprocess.Popen(
-        [sys.executable, "-m", "backend.cli", "serve", "--demo", "--data-dir", str(data_dir)],
+        [*SEGB, "serve", "--demo", "--data-dir", str(data_dir)],
         env=clean_env({"API_PORT": str(api_port), "UI_PORT": str(ui_port)}),
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,

@@ -8,7 +8,7 @@ from pathlib import Path
 import httpx
 import jwt
 
-from backend.api.app import create_app
+from segb_server.backend.api.app import create_app
 from tests.cli.test_cli import segb
 from tests.conftest import make_settings
 from tests.support.live_server import LiveServer

@@ -229,8 +229,8 @@ def test_tutorial_holds_on_the_compose_services_run_natively(native_stack: Nativ
         assert ui_check.returncode == 0, ui_check.stderr
 
         # The only differences from what compose runs: ports, the service hostnames, the container paths.
-        assert stack.changes["backend"] == (["5000"], {"VIRTUOSO_ENDPOINT", "DATA_DIR", "SPARQL_DIR"})
-        assert stack.changes["ui"] == (["8080"], {"BACKEND_URL", "DATA_DIR", "SPARQL_DIR"})
+        assert stack.changes["backend"] == (["5000"], {"VIRTUOSO_ENDPOINT", "DATA_DIR"})
+        assert stack.changes["ui"] == (["8080"], {"BACKEND_URL", "DATA_DIR"})
 
         # The tutorial: curl -s http://localhost:5000/healthz/ready
         curl = shutil.which("curl")

@@ -8,7 +8,6 @@ import subprocess
 import sys
 import tomllib
 import zipfile
-from fnmatch import fnmatch
 from pathlib import Path
 
 from packaging.requirements import Requirement
@@ -42,13 +41,10 @@ def build_stage() -> list[Instruction]:
 
 
 def packages() -> list[str]:
-    """Top-level directories of the checkout that pyproject's package search includes."""
-    include = PYPROJECT["tool"]["setuptools"]["packages"]["find"]["include"]
-    return sorted(
-        path.name
-        for path in ROOT.iterdir()
-        if (path / "__init__.py").is_file() and any(fnmatch(path.name, pattern) for pattern in include)
-    )
+    """Top-level folders of the checkout that setup.py installs under `segb_server`."""
+    mapped = re.search(r"CODE_FOLDERS = \(([^)]*)\)", (ROOT / "setup.py").read_text())
+    assert mapped, "setup.py names its CODE_FOLDERS"
+    return sorted([*re.findall(r'"([a-z_]+)"', mapped.group(1)), "sparql"])
 
 
 def test_lock_pins_every_runtime_dependency_with_hashes() -> None:
@@ -72,8 +68,8 @@ def test_build_stage_installs_the_lock_with_hashes_and_copies_every_package() ->
     runs = " ".join(i.arguments for i in build_stage() if i.keyword == "RUN")
     assert "--require-hashes -r requirements.lock" in runs
     copied = {source for sources, _ in stage_copies(build_stage()) for source in sources}
-    assert {"requirements.lock", "pyproject.toml", "README.md"} <= copied
-    assert packages() == ["backend", "examples", "ui"]
+    assert {"requirements.lock", "pyproject.toml", "setup.py", "README.md"} <= copied
+    assert packages() == ["backend", "examples", "sparql", "ui"]
     assert set(packages()) <= copied  # `segb demo` and `segb serve --demo` import examples.emotion_mirror
 
 
@@ -88,9 +84,9 @@ def test_final_stage_runs_unprivileged_on_the_same_base_without_build_tools() ->
     assert from_build == ["--from=build /venv /venv"]
 
 
-def test_final_stage_holds_the_sparql_directory_its_settings_name() -> None:
+def test_final_stage_leaves_the_queries_to_the_installed_package() -> None:
     environment = image_environment(final_stage())
-    assert (["sparql"], environment["SPARQL_DIR"]) in stage_copies(final_stage())
+    assert "SPARQL_DIR" not in environment  # the .rq files are package data (segb_server/sparql)
     assert environment["PATH"].startswith("/venv/bin:")
     assert environment["HOST"] == "0.0.0.0"
 
@@ -125,13 +121,14 @@ def test_package_built_from_the_build_stage_copies_holds_every_runtime_file(tmp_
     (wheel,) = (tmp_path / "wheel").glob("*.whl")
     in_wheel = set(zipfile.ZipFile(wheel).namelist())
     needed = {
-        path.relative_to(source).as_posix()
+        "segb_server/" + path.relative_to(source).as_posix()
         for package in packages()
         for path in (source / package).rglob("*")
-        if path.is_file() and "__pycache__" not in path.parts and (path.suffix == ".py" or package == "ui")
+        if path.is_file() and "__pycache__" not in path.parts and path.suffix != ".md"
     }
     assert needed - in_wheel == set()
-    assert "ui/static/vendor/cytoscape/cytoscape.min.js" in in_wheel
-    assert "ui/templates/reports.html" in in_wheel
+    assert "segb_server/ui/static/vendor/cytoscape/cytoscape.min.js" in in_wheel
+    assert "segb_server/sparql/reports/participants.rq" in in_wheel
+    assert not any(name.startswith(("backend/", "ui/", "examples/")) for name in in_wheel)  # nothing top-level
     entry_points = next(name for name in in_wheel if name.endswith("entry_points.txt"))
-    assert "segb = backend.cli:main" in zipfile.ZipFile(wheel).read(entry_points).decode()
+    assert "segb = segb_server.backend.cli:main" in zipfile.ZipFile(wheel).read(entry_points).decode()

@@ -12,9 +12,9 @@ from typing import Any
 import httpx
 import pytest
 
-from examples.emotion_mirror import run
-from examples.emotion_mirror.mission import FALLBACK_REPLY
-from examples.emotion_mirror.script import Expression, Utterance, default_script
+from segb_server.examples.emotion_mirror import run
+from segb_server.examples.emotion_mirror.mission import FALLBACK_REPLY
+from segb_server.examples.emotion_mirror.script import Expression, Utterance, default_script
 from tests.support.live_server import LiveServer
 from tests.support.net import free_port
 from tests.support.sparql import select_bindings
@@ -145,7 +145,7 @@ def test_a_bad_script_is_refused_before_anything_is_published(
 def test_an_unreachable_server_fails_with_a_clear_message() -> None:
     server = closed_port_url()
     result = subprocess.run(
-        [sys.executable, "-m", "examples.emotion_mirror.run", "--server", server],
+        [sys.executable, "-m", "segb_server.examples.emotion_mirror.run", "--server", server],
         cwd=ROOT,
         capture_output=True,
         text=True,

@@ -6,14 +6,14 @@ from pathlib import Path
 
 import pytest
 
-from backend.config import PROJECT_ROOT
-from backend.services.catalog import Catalog, paged
-from backend.services.errors import InvalidParameter, NotFound
-from backend.store.base import select
-from backend.store.oxigraph import OxigraphStore
-from backend.store.query_form import query_form
+from segb_server.backend.config import PACKAGE_ROOT
+from segb_server.backend.services.catalog import Catalog, paged
+from segb_server.backend.services.errors import InvalidParameter, NotFound
+from segb_server.backend.store.base import select
+from segb_server.backend.store.oxigraph import OxigraphStore
+from segb_server.backend.store.query_form import query_form
 
-SHIPPED = Catalog(PROJECT_ROOT / "sparql")
+SHIPPED = Catalog(PACKAGE_ROOT / "sparql")
 
 
 def write(directory: Path, name: str, text: str) -> None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pyoxigraph import NamedNode, RdfFormat, parse
 
-from backend.services.skolem import skolemize
+from segb_server.backend.services.skolem import skolemize
 
 BASE = "http://amor-segb/.well-known/genid/"
 

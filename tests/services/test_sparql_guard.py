@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from backend.services.errors import InvalidQuery, PayloadTooLarge
-from backend.services.sparql_guard import MAX_QUERY_BYTES, QueryTooLong, check_read_only, guard_query
+from segb_server.backend.services.errors import InvalidQuery, PayloadTooLarge
+from segb_server.backend.services.sparql_guard import MAX_QUERY_BYTES, QueryTooLong, check_read_only, guard_query
 
 EVENTS = "http://amor-segb/events"
 SPARQL_DIR = Path(__file__).resolve().parents[2] / "sparql"

@@ -28,10 +28,10 @@ def test_unknown_pages_get_an_html_error_page_not_a_traceback(ui_stack: UiStack)
 
 
 def test_health_page_reports_an_unreachable_api(memory_store) -> None:  # type: ignore[no-untyped-def]
+    from segb_server.ui.app import create_ui_app
     from tests.conftest import make_settings
     from tests.support.live_server import LiveServer
     from tests.support.net import free_port
-    from ui.app import create_ui_app
 
     with LiveServer(create_ui_app(make_settings(backend_url=f"http://127.0.0.1:{free_port()}"))) as ui:
         answer = httpx.get(f"{ui.url}/health")

@@ -10,12 +10,12 @@ from pathlib import Path
 import httpx
 import pytest
 
-from backend.api.app import create_app
-from backend.store.base import Store
+from segb_server.backend.api.app import create_app
+from segb_server.backend.store.base import Store
+from segb_server.ui.app import create_ui_app
 from tests.conftest import UiStack, make_settings
 from tests.support.live_server import LiveServer
 from tests.support.scenarios import lobby
-from ui.app import create_ui_app
 
 pytestmark = pytest.mark.browser
 

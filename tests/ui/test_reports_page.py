@@ -97,7 +97,7 @@ def test_empty_store_shows_what_is_missing(ui_stack: UiStack, page) -> None:  # 
 
 
 def test_reports_page_says_when_the_api_is_down(memory_store) -> None:  # type: ignore[no-untyped-def]
-    from ui.app import create_ui_app
+    from segb_server.ui.app import create_ui_app
 
     with LiveServer(create_ui_app(make_settings(backend_url=f"http://127.0.0.1:{free_port()}"))) as ui:
         answer = httpx.get(f"{ui.url}/reports")

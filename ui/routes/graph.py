@@ -10,10 +10,10 @@ from __future__ import annotations
 from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse, Response
 
-from backend.services.kinds import KINDS
-from ui.choices import participant_choices
-from ui.pages import backend, render, token
-from ui.query_params import query_values
+from segb_server.backend.services.kinds import KINDS
+from segb_server.ui.choices import participant_choices
+from segb_server.ui.pages import backend, render, token
+from segb_server.ui.query_params import query_values
 
 router = APIRouter()
 

@@ -7,8 +7,8 @@ import asyncio
 from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse
 
-from ui.api_client import BackendUnavailable
-from ui.pages import backend, render
+from segb_server.ui.api_client import BackendUnavailable
+from segb_server.ui.pages import backend, render
 
 router = APIRouter()
 

@@ -7,7 +7,7 @@ import asyncio
 from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse
 
-from ui.pages import backend, render, token
+from segb_server.ui.pages import backend, render, token
 
 router = APIRouter()
 

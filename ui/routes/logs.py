@@ -5,8 +5,8 @@ from __future__ import annotations
 from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse
 
-from ui.pages import backend, render, token
-from ui.query_params import query_values
+from segb_server.ui.pages import backend, render, token
+from segb_server.ui.query_params import query_values
 
 router = APIRouter()
 

@@ -9,9 +9,9 @@ import anyio
 from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse, Response
 
-from ui.api_client import BackendClient, BackendError
-from ui.pages import backend, render, token
-from ui.query_results import Table, from_ntriples, from_results_json
+from segb_server.ui.api_client import BackendClient, BackendError
+from segb_server.ui.pages import backend, render, token
+from segb_server.ui.query_results import Table, from_ntriples, from_results_json
 
 router = APIRouter()
 

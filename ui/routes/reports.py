@@ -8,10 +8,10 @@ from typing import Any
 from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse, Response
 
-from ui.choices import participant_choices
-from ui.pages import backend, render, token
-from ui.query_params import query_values
-from ui.report_views import OVERVIEW_ORDER, view_of
+from segb_server.ui.choices import participant_choices
+from segb_server.ui.pages import backend, render, token
+from segb_server.ui.query_params import query_values
+from segb_server.ui.report_views import OVERVIEW_ORDER, view_of
 
 router = APIRouter()
 

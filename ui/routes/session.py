@@ -5,11 +5,11 @@ from __future__ import annotations
 from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 
-from ui.api_client import BackendError
-from ui.csrf import check_csrf
-from ui.forms import read_form
-from ui.pages import backend, render
-from ui.session import TOKEN_COOKIE
+from segb_server.ui.api_client import BackendError
+from segb_server.ui.csrf import check_csrf
+from segb_server.ui.forms import read_form
+from segb_server.ui.pages import backend, render
+from segb_server.ui.session import TOKEN_COOKIE
 
 router = APIRouter()
 

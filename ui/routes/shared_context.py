@@ -8,9 +8,9 @@ from urllib.parse import quote
 from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 
-from ui.csrf import check_csrf
-from ui.forms import read_form
-from ui.pages import backend, render, token
+from segb_server.ui.csrf import check_csrf
+from segb_server.ui.forms import read_form
+from segb_server.ui.pages import backend, render, token
 
 router = APIRouter()
 

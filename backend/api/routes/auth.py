@@ -5,7 +5,7 @@ from __future__ import annotations
 from fastapi import APIRouter
 from pydantic import BaseModel, Field
 
-from backend.api.deps import PrincipalDep, SettingsDep
+from segb_server.backend.api.deps import PrincipalDep, SettingsDep
 
 router = APIRouter(tags=["auth"])
 

@@ -8,9 +8,9 @@ from fastapi import APIRouter, Query, Request
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import StreamingResponse
 
-from backend.api.deps import Auditor, ServicesDep
-from backend.services.errors import InvalidParameter
-from backend.services.export import EXPORT_FORMATS, FORMAT_NAMES, negotiate, stream_graph
+from segb_server.backend.api.deps import Auditor, ServicesDep
+from segb_server.backend.services.errors import InvalidParameter
+from segb_server.backend.services.export import EXPORT_FORMATS, FORMAT_NAMES, negotiate, stream_graph
 
 router = APIRouter(tags=["export"])
 

@@ -9,10 +9,10 @@ from fastapi import APIRouter, Query
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import JSONResponse
 
-from backend.api.deps import Auditor, ServicesDep
-from backend.services.catalog import Parameter, to_term
-from backend.services.graph import MAX_NODES, GraphRequest, parse_types
-from backend.services.term_values import iso_time
+from segb_server.backend.api.deps import Auditor, ServicesDep
+from segb_server.backend.services.catalog import Parameter, to_term
+from segb_server.backend.services.graph import MAX_NODES, GraphRequest, parse_types
+from segb_server.backend.services.term_values import iso_time
 
 router = APIRouter(tags=["graph"])
 

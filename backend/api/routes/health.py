@@ -8,7 +8,7 @@ import anyio
 from fastapi import APIRouter, Request
 from fastapi.responses import JSONResponse
 
-from backend.store.base import StoreError
+from segb_server.backend.store.base import StoreError
 
 router = APIRouter(tags=["health"])
 

@@ -6,9 +6,9 @@ from fastapi import APIRouter, Request
 from fastapi.concurrency import run_in_threadpool
 from pydantic import BaseModel, Field
 
-from backend.api.deps import Admin, LimitedBody, Logger, ServicesDep
-from backend.services.ingest import IngestResult
-from backend.services.payloads import DeleteAllRequest, IngestRequest, decode_ingest_body
+from segb_server.backend.api.deps import Admin, LimitedBody, Logger, ServicesDep
+from segb_server.backend.services.ingest import IngestResult
+from segb_server.backend.services.payloads import DeleteAllRequest, IngestRequest, decode_ingest_body
 
 router = APIRouter(tags=["ingest"])
 

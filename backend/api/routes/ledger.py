@@ -9,8 +9,8 @@ from fastapi import APIRouter, Query
 from fastapi.concurrency import run_in_threadpool
 from pydantic import BaseModel, Field
 
-from backend.api.deps import Auditor, ServicesDep
-from backend.api.paging import Offset
+from segb_server.backend.api.deps import Auditor, ServicesDep
+from segb_server.backend.api.paging import Offset
 
 router = APIRouter(tags=["ledger"])
 

@@ -7,8 +7,8 @@ from typing import Any
 from fastapi import APIRouter, Query, Request
 from pydantic import BaseModel, Field
 
-from backend.api.deps import Admin
-from backend.services.server_log import LEVELS, ServerLog
+from segb_server.backend.api.deps import Admin
+from segb_server.backend.services.server_log import LEVELS, ServerLog
 
 router = APIRouter(tags=["operations"])
 

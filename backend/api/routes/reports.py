@@ -8,11 +8,11 @@ from fastapi import APIRouter, Query, Request
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import JSONResponse, Response
 
-from backend.api.deps import Auditor, ServicesDep
-from backend.api.paging import Offset
-from backend.services.catalog import CatalogQuery
-from backend.services.errors import InvalidParameter
-from backend.services.reports import short_name
+from segb_server.backend.api.deps import Auditor, ServicesDep
+from segb_server.backend.api.paging import Offset
+from segb_server.backend.services.catalog import CatalogQuery
+from segb_server.backend.services.errors import InvalidParameter
+from segb_server.backend.services.reports import short_name
 
 router = APIRouter(tags=["reports"])
 

@@ -14,11 +14,11 @@ from fastapi import APIRouter, Body, Path
 from fastapi.concurrency import run_in_threadpool
 from pydantic import BaseModel, Field, field_validator
 
-from backend.api.deps import Admin, Auditor, Logger, ServicesDep
-from backend.services.clock import utc_iso
-from backend.services.shared_context.policy import RESOLVER_VERSION, atom, epoch, scoring_text
-from backend.services.shared_context.service import ContextRecord, Decision, Observation
-from backend.services.shared_context.state import Case
+from segb_server.backend.api.deps import Admin, Auditor, Logger, ServicesDep
+from segb_server.backend.services.clock import utc_iso
+from segb_server.backend.services.shared_context.policy import RESOLVER_VERSION, atom, epoch, scoring_text
+from segb_server.backend.services.shared_context.service import ContextRecord, Decision, Observation
+from segb_server.backend.services.shared_context.state import Case
 
 router = APIRouter(prefix="/shared-context", tags=["shared context"])
 

@@ -22,15 +22,15 @@ from pyoxigraph import (
     serialize,
 )
 
-from backend.api.deps import Auditor, LimitedBody, ServicesDep
-from backend.services.container import Services
-from backend.services.errors import InvalidParameter, ServiceError, UnsupportedMediaType
-from backend.services.export import NotAcceptable
-from backend.services.media_types import accepted_media_types
-from backend.services.namespaces import PREFIXES
-from backend.services.sparql_guard import MAX_QUERY_BYTES, CheckedQuery, guard_query, query_rejected
-from backend.services.sparql_limits import LimitedResult, QueryLimits, run_limited
-from backend.store.base import QueryResult, Store
+from segb_server.backend.api.deps import Auditor, LimitedBody, ServicesDep
+from segb_server.backend.services.container import Services
+from segb_server.backend.services.errors import InvalidParameter, ServiceError, UnsupportedMediaType
+from segb_server.backend.services.export import NotAcceptable
+from segb_server.backend.services.media_types import accepted_media_types
+from segb_server.backend.services.namespaces import PREFIXES
+from segb_server.backend.services.sparql_guard import MAX_QUERY_BYTES, CheckedQuery, guard_query, query_rejected
+from segb_server.backend.services.sparql_limits import LimitedResult, QueryLimits, run_limited
+from segb_server.backend.store.base import QueryResult, Store
 
 router = APIRouter(tags=["sparql"])
 

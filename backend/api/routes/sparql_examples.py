@@ -5,8 +5,8 @@ from __future__ import annotations
 from fastapi import APIRouter
 from pydantic import BaseModel, Field
 
-from backend.api.deps import Auditor, ServicesDep
-from backend.services.query_examples import query_examples
+from segb_server.backend.api.deps import Auditor, ServicesDep
+from segb_server.backend.services.query_examples import query_examples
 
 router = APIRouter(tags=["sparql"])
 

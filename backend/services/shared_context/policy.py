@@ -7,7 +7,7 @@ import re
 from dataclasses import dataclass
 from datetime import UTC, datetime
 
-from backend.config import Settings
+from segb_server.backend.config import Settings
 
 # The reference backend's rule set, kept so clients and auditors can tell which rules decided.
 RESOLVER_VERSION = "shared-context-v1-rules"

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 from difflib import SequenceMatcher
 from typing import Protocol
 
-from backend.services.shared_context.policy import WEIGHTS, Policy
+from segb_server.backend.services.shared_context.policy import WEIGHTS, Policy
 
 
 class Observed(Protocol):

@@ -11,11 +11,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from backend.services.clock import utc_iso
-from backend.services.errors import Conflict, InvalidParameter, NotFound
-from backend.services.shared_context.policy import MAX_CANDIDATES_PER_CASE, Policy, digest, slug
-from backend.services.shared_context.scoring import Score, decisive, may_match, ranked, score
-from backend.services.shared_context.state import Case, Context, ContextState, ObservationRow
+from segb_server.backend.services.clock import utc_iso
+from segb_server.backend.services.errors import Conflict, InvalidParameter, NotFound
+from segb_server.backend.services.shared_context.policy import MAX_CANDIDATES_PER_CASE, Policy, digest, slug
+from segb_server.backend.services.shared_context.scoring import Score, decisive, may_match, ranked, score
+from segb_server.backend.services.shared_context.state import Case, Context, ContextState, ObservationRow
 
 
 @dataclass(frozen=True)

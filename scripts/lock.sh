@@ -1,0 +1,14 @@
+#!/usr/bin/env bash
+# Refresh the hashed locks from pyproject.toml: requirements.lock (what the server needs at run time) and
+# requirements-test.lock (that plus the test tools). The test lock is resolved first and the run-time lock is
+# constrained to it, so both pin the same versions. Needs pip-tools: `python3 -m pip install pip-tools`.
+# Run it with the oldest supported Python (3.11), commit both files, then run ./scripts/test.sh.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+common=(--quiet --generate-hashes --no-emit-find-links --no-emit-index-url --strip-extras --allow-unsafe --upgrade)
+python3 -m piptools compile "${common[@]}" --extra test --output-file requirements-test.lock pyproject.toml
+constraints=$(mktemp)
+trap 'rm -f "$constraints"' EXIT
+grep -E '^[A-Za-z0-9][A-Za-z0-9._-]*==' requirements-test.lock | sed 's/ \\$//' >"$constraints"
+python3 -m piptools compile "${common[@]}" --constraint "$constraints" --output-file requirements.lock pyproject.toml
+sed -i "s#--constraint=$constraints#--constraint=<requirements-test.lock pins>#" requirements.lock
