@@ -38,40 +38,53 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="segb", description="SEGB server: semantic robot logs, stored and audited.")
-    commands = parser.add_subparsers(dest="command", required=True)
+    parser = argparse.ArgumentParser(
+        prog="segb",
+        description="SEGB server: semantic robot logs, stored and audited. Options left out come from the "
+        "environment variable named in their help, then `.env`, then the default shown.",
+    )
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     serve = commands.add_parser("serve", help="run the API (default :5000) and the web UI (default :8080)")
     _store_options(serve)
-    serve.add_argument("--host", help="interface to listen on (HOST, default 127.0.0.1)")
-    serve.add_argument("--api-port", type=int, help="API port (API_PORT, default 5000)")
-    serve.add_argument("--ui-port", type=int, help="UI port (UI_PORT, default 8080)")
-    serve.add_argument("--backend-url", help="URL the UI uses to reach the API (BACKEND_URL)")
-    serve.add_argument("--only", choices=["api", "ui"], help="run just one of the two servers")
+    serve.add_argument("--host", help="interface to listen on (HOST; default 127.0.0.1)")
+    serve.add_argument("--api-port", type=int, help="API port (API_PORT; default 5000)")
+    serve.add_argument("--ui-port", type=int, help="UI port (UI_PORT; default 8080)")
+    serve.add_argument("--backend-url", help="URL the UI uses to reach the API (BACKEND_URL; default the API's)")
+    serve.add_argument("--only", choices=["api", "ui"], help="run just one of the two servers (default: both)")
     serve.add_argument("--demo", action="store_true", help="load the demo dataset at start-up if the store is empty")
     serve.set_defaults(handler=_serve)
 
     load = commands.add_parser("import", help="load Turtle (.ttl) or N-Triples (.nt) files into the store")
     _store_options(load)
-    load.add_argument("files", nargs="+", type=Path, metavar="FILE")
+    load.add_argument("files", nargs="+", type=Path, metavar="FILE", help="a .ttl or .nt file (several may follow)")
     load.set_defaults(handler=_import)
 
     export = commands.add_parser("export", help="write the events graph out (streamed)")
     _store_options(export)
-    export.add_argument("--format", choices=["turtle", "ntriples", "nquads", "jsonld"], default="turtle")
+    export.add_argument(
+        "--format", choices=["turtle", "ntriples", "nquads", "jsonld"], default="turtle", help="syntax (default turtle)"
+    )
     export.add_argument("--output", "-o", type=Path, help="file to write (default: standard output)")
     export.set_defaults(handler=_export)
 
     token = commands.add_parser(
         "token", help="print an API token (the secret comes from SECRET_KEY or --secret-file, never from argv)"
     )
-    token.add_argument("--username", required=True)
-    token.add_argument("--role", action="append", required=True, choices=["logger", "auditor", "admin"])
-    token.add_argument("--expires-in", type=int, default=3600, help="lifetime in seconds (60 … 2592000)")
-    token.add_argument("--name", help="display name claim")
-    token.add_argument("--secret-file", type=Path, help="file holding the secret (else SECRET_KEY)")
+    token.add_argument("--username", required=True, help="who the token names (recorded with every post)")
+    token.add_argument(
+        "--role",
+        action="append",
+        required=True,
+        choices=["logger", "auditor", "admin"],
+        help="a role of the token; repeat for several (logger publishes, auditor reads, admin does everything)",
+    )
+    token.add_argument("--scope", action="append", metavar="IRI_PREFIX", help=_SCOPE_HELP)
+    token.add_argument("--expires-in", type=int, default=3600, help="lifetime in seconds, 60 … 2592000 (default 3600)")
+    token.add_argument("--name", help="display name claim (default: none)")
+    token.add_argument("--secret-file", type=Path, help="file holding the secret (default: SECRET_KEY)")
     token.add_argument("--allow-weak-secret", action="store_true", help="accept a secret under 32 characters")
-    token.add_argument("--json", action="store_true", help="print token, username, roles, exp as JSON")
+    token.add_argument("--json", action="store_true", help="print token, username, roles, scopes, exp as JSON")
     token.set_defaults(handler=_token)
 
     demo = commands.add_parser("demo", help="publish the demo dataset (robots ARI and TIAGo) to a running server")
@@ -81,9 +94,19 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
+_SCOPE_HELP = (
+    "an IRI prefix the token may write about (the subjects of its triples); repeat for several, e.g. the robot's "
+    "own namespace and the shared people namespace (default: no limit)"
+)
+
+
 def _store_options(command: argparse.ArgumentParser) -> None:
-    command.add_argument("--store", choices=["oxigraph", "memory", "virtuoso", "sparql"], help="STORE")
-    command.add_argument("--data-dir", type=Path, help="DATA_DIR (embedded store location)")
+    command.add_argument(
+        "--store",
+        choices=["oxigraph", "memory", "virtuoso", "sparql"],
+        help="triple store (STORE; default oxigraph, the embedded store in DATA_DIR)",
+    )
+    command.add_argument("--data-dir", type=Path, help="where the server keeps its files (DATA_DIR; default ./data)")
 
 
 def _settings(args: argparse.Namespace, *names: str) -> Settings:
@@ -134,8 +157,8 @@ def _serve(args: argparse.Namespace) -> int:
 
 def _check_catalog(settings: Settings) -> None:
     """Fail before serving when the SPARQL queries are missing (raises CatalogError: one line, exit 2)."""
-    from segb_server.backend.services.catalog import Catalog
     from segb_server.backend.services.container import REQUIRED_QUERIES
+    from segb_server.backend.services.sparql.catalog import Catalog
 
     Catalog(settings.sparql_dir, required=REQUIRED_QUERIES)
 
@@ -178,7 +201,7 @@ async def _serve_together(servers: list[uvicorn.Server]) -> None:
 
 
 def _import(args: argparse.Namespace) -> int:
-    from segb_server.backend.services.bulk_import import import_file
+    from segb_server.backend.services.ingest.bulk import import_file
     from segb_server.backend.store.factory import open_store
 
     settings = _settings(args)
@@ -198,13 +221,14 @@ def _import(args: argparse.Namespace) -> int:
 
 
 def _export(args: argparse.Namespace) -> int:
-    from segb_server.backend.services.export import EXPORT_FORMATS, FORMAT_NAMES, stream_graph
+    from segb_server.backend.services.formats import EXPORTS, by_name
+    from segb_server.backend.services.views.export import stream_graph
     from segb_server.backend.store.factory import open_store
 
     settings = _settings(args)
     store = open_store(settings)
     try:
-        chunks = stream_graph(store, EXPORT_FORMATS[FORMAT_NAMES[args.format]])
+        chunks = stream_graph(store, by_name(EXPORTS, args.format))
         if args.output is None:
             for chunk in chunks:
                 sys.stdout.buffer.write(chunk)
@@ -228,10 +252,9 @@ def _demo(args: argparse.Namespace) -> int:
 
 def _token(args: argparse.Namespace) -> int:
     import json
-    import os
     from datetime import UTC, datetime
 
-    from segb_server.backend.services.tokens import TokenRequestError, mint_token
+    from segb_server.backend.auth import TokenRequestError, mint_token
 
     if args.secret_file is not None:
         try:
@@ -239,7 +262,8 @@ def _token(args: argparse.Namespace) -> int:
         except OSError as error:
             return _fail(f"cannot read the secret file: {error}")
     else:
-        secret = os.environ.get("SECRET_KEY", "")
+        # Settings, so SECRET_KEY is read as the server reads it: the environment, then `.env`.
+        secret = Settings(allow_weak_secret=True).secret_key
     if not secret:
         return _fail("no secret: set SECRET_KEY or pass --secret-file")
     try:
@@ -249,6 +273,7 @@ def _token(args: argparse.Namespace) -> int:
             roles=args.role,
             expires_in=args.expires_in,
             name=args.name,
+            scopes=args.scope or (),
             allow_weak_secret=args.allow_weak_secret,
         )
     except TokenRequestError as error:
@@ -262,6 +287,7 @@ def _token(args: argparse.Namespace) -> int:
                     "username": minted.username,
                     "roles": minted.roles,
                     "exp": minted.expires_at,
+                    "scopes": minted.scopes,
                     "exp_utc": expires,
                     "algorithm": "HS256",
                 }

@@ -26,8 +26,8 @@ from rdflib import Graph
 from segb_server.backend.config import Settings
 from segb_server.backend.services.container import build_services
 from segb_server.backend.services.errors import ServiceError
-from segb_server.backend.services.ingest import IngestResult
-from segb_server.backend.services.payloads import RdfPayload
+from segb_server.backend.services.ingest.payloads import RdfPayload
+from segb_server.backend.services.ingest.service import IngestResult
 from segb_server.backend.store.base import Store
 
 if TYPE_CHECKING:  # the robot code is imported when a demo is built, not whenever the CLI starts

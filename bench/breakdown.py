@@ -7,9 +7,9 @@ import time
 from pathlib import Path
 
 from bench.measure import Latency
-from segb_server.backend.services.ledger import Ledger
-from segb_server.backend.services.payloads import decode_ingest_body
-from segb_server.backend.services.rdf_parsing import parse_triples
+from segb_server.backend.services.ingest.parsing import parse_triples
+from segb_server.backend.services.ingest.payloads import decode_ingest_body
+from segb_server.backend.services.ops.ledger import Ledger
 from segb_server.backend.store.oxigraph import OxigraphStore
 
 STEPS = ("JSON body decoding", "Turtle parsing (pyoxigraph)", "store write (RocksDB)", "ledger receipt (SQLite)")

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 from hypothesis import settings as hypothesis_settings
+from hypothesis.configuration import set_hypothesis_home_dir
 
 from segb_server.backend.api.app import create_app
 from segb_server.backend.config import Settings
@@ -26,9 +27,11 @@ FIXTURES = Path(__file__).resolve().parent / "fixtures"  # Turtle from the real 
 STORE_KINDS = ["oxigraph", pytest.param("virtuoso", marks=pytest.mark.virtuoso)]
 
 
-# Property tests keep no example database: the suite writes nothing outside temporary directories.
+# Property tests keep no example database, and hypothesis's own files go to a temporary directory: the suite
+# writes nothing outside temporary directories.
 hypothesis_settings.register_profile("segb", database=None, deadline=None)
 hypothesis_settings.load_profile("segb")
+set_hypothesis_home_dir(tempfile.mkdtemp(prefix="segb-test-hypothesis-"))
 
 
 def pytest_configure(config: pytest.Config) -> None:

@@ -1,4 +1,4 @@
-"""The codebase stays ruff-clean (lint rules in pyproject.toml)."""
+"""The codebase stays ruff-clean and type-checks (rules in pyproject.toml)."""
 
 from __future__ import annotations
 
@@ -12,5 +12,12 @@ ROOT = Path(__file__).resolve().parents[1]
 def test_ruff_finds_nothing() -> None:
     result = subprocess.run(
         [sys.executable, "-m", "ruff", "check", "--no-cache", "."], cwd=ROOT, capture_output=True, text=True
+    )
+    assert result.returncode == 0, result.stdout + result.stderr
+
+
+def test_mypy_finds_nothing() -> None:
+    result = subprocess.run(
+        [str(ROOT / "scripts" / "typecheck.sh")], cwd=ROOT, capture_output=True, text=True, timeout=600
     )
     assert result.returncode == 0, result.stdout + result.stderr

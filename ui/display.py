@@ -5,7 +5,7 @@ from __future__ import annotations
 from datetime import datetime
 from urllib.parse import urlencode
 
-from segb_server.backend.services.namespaces import compact
+from segb_server.ui.vocabulary import current
 
 
 def short_iri(value: object) -> str:
@@ -13,7 +13,7 @@ def short_iri(value: object) -> str:
     text = str(value or "")
     if not text.startswith(("http://", "https://", "urn:")):
         return text
-    compacted = compact(text)
+    compacted = current().compact(text)
     if compacted != text:
         return compacted
     tail = text.rstrip("/#").replace("#", "/").rsplit("/", 1)[-1]

@@ -11,9 +11,9 @@ from starlette.requests import Request
 from starlette.responses import Response
 
 from segb_server.ui.api_client import BackendClient, BackendError, BackendUnavailable
+from segb_server.ui.vocabulary import ensure as ensure_vocabulary
 
 TOKEN_COOKIE = "segb_token"
-ALL_ROLES = frozenset({"logger", "auditor", "admin"})
 CACHE_SECONDS = 15.0
 CACHE_ENTRIES = 1024
 
@@ -24,14 +24,17 @@ class Viewer:
 
     status: str
     username: str | None = None
-    roles: frozenset[str] = frozenset()
+    roles: frozenset[str] = frozenset()  # the roles the viewer acts with, as the API grants them
     problem: str | None = None
+    token_roles: tuple[str, ...] = ()  # the roles the token names
+    scopes: tuple[str, ...] = ()
+    expires_at: int | None = None
 
     def can(self, roles: tuple[str, ...] | None) -> bool:
-        """Whether pages needing one of `roles` are of use (None = public). Admin may do everything."""
+        """Whether pages needing one of `roles` are of use (None = public)."""
         if not roles or self.status in ("auth-off", "unknown"):
             return True
-        return "admin" in self.roles or bool(self.roles.intersection(roles))
+        return not self.roles.isdisjoint(roles)
 
 
 class ViewerCache:
@@ -60,7 +63,7 @@ async def _ask(client: BackendClient, token: str | None) -> Viewer:
     try:
         mode = await client.get_json("/auth/mode")
         if not mode.get("auth_enabled"):
-            return Viewer("auth-off", "anonymous_user", ALL_ROLES)
+            return Viewer("auth-off", "anonymous_user", frozenset(mode["roles"]))
         if not token:
             return Viewer("no-token")
         identity = await client.get_json("/auth/whoami", token=token)
@@ -70,7 +73,14 @@ async def _ask(client: BackendClient, token: str | None) -> Viewer:
         return Viewer("unknown", problem=error.detail)
     except BackendUnavailable as error:
         return Viewer("unknown", problem=str(error))
-    return Viewer("active", identity["username"], frozenset(identity["roles"]))
+    return Viewer(
+        "active",
+        identity["username"],
+        frozenset(identity["granted_roles"]),
+        token_roles=tuple(identity["roles"]),
+        scopes=tuple(identity["scopes"]),
+        expires_at=identity.get("expires_at"),
+    )
 
 
 class ViewerMiddleware(BaseHTTPMiddleware):
@@ -80,5 +90,6 @@ class ViewerMiddleware(BaseHTTPMiddleware):
         if not request.url.path.startswith("/static/"):
             cache: ViewerCache = request.app.state.viewers
             token = request.cookies.get(TOKEN_COOKIE) or None
+            await ensure_vocabulary(request.app.state.backend)
             request.state.viewer = await cache.viewer(request.app.state.backend, token)
         return await call_next(request)

@@ -26,11 +26,13 @@ from segb_server.backend.api.routes import (
     shared_context,
     sparql,
     sparql_examples,
+    vocabulary,
 )
 from segb_server.backend.config import Settings
-from segb_server.backend.services.container import build_services
-from segb_server.backend.services.server_log import ServerLog
-from segb_server.backend.services.store_monitor import StoreMonitor
+from segb_server.backend.services.container import REQUIRED_QUERIES, build_services
+from segb_server.backend.services.ops.server_log import ServerLog
+from segb_server.backend.services.ops.store_monitor import StoreMonitor
+from segb_server.backend.services.sparql.catalog import Catalog
 from segb_server.backend.store.base import Store
 from segb_server.backend.store.factory import open_store
 
@@ -51,28 +53,28 @@ ROUTERS = [
     auth.router,
     ingest.router,
     events.router,
-    reports.router,
     graph.router,
     ledger.router,
     sparql.router,
     sparql_examples.router,
     logs.router,
     shared_context.router,
+    vocabulary.router,
 ]
 
 
 def create_app(settings: Settings | None = None, store: Store | None = None) -> FastAPI:
     """The API app. With `store` given, the app uses it and leaves closing it to the caller."""
     settings = settings or Settings()
+    # Loaded here, before the app exists: the report routes and their documentation are made from it.
+    catalog = Catalog(settings.sparql_dir, required=REQUIRED_QUERIES)
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         server_log = ServerLog.from_settings(settings)
         server_log.install()
-        app.state.server_log = server_log
         active_store = store if store is not None else open_store(settings)
-        app.state.services = build_services(settings, active_store)
-        app.state.store_kind = active_store.kind
+        app.state.services = build_services(settings, active_store, server_log=server_log, catalog=catalog)
         logger.info("SEGB API ready (store=%s, auth=%s)", active_store.kind, settings.auth_enabled)
         monitor = StoreMonitor(
             active_store, max_retry_seconds=settings.store_retry_max_seconds, check_seconds=settings.store_check_seconds
@@ -109,6 +111,6 @@ def create_app(settings: Settings | None = None, store: Store | None = None) -> 
             expose_headers=["X-Request-ID"],
         )
     app.add_middleware(RequestContext)  # added last, so it is outermost: every answer carries the id
-    for router in ROUTERS:
+    for router in [*ROUTERS, reports.build_router(catalog)]:
         app.include_router(router)
     return app

@@ -7,7 +7,7 @@ from typing import Annotated
 
 from fastapi import Depends, Request
 
-from segb_server.backend.api.security import Principal, authorize, principal_from_header
+from segb_server.backend.auth import Principal, authorize, principal_from_header
 from segb_server.backend.config import Settings
 from segb_server.backend.services.container import Services
 from segb_server.backend.services.errors import PayloadTooLarge

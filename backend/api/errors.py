@@ -9,12 +9,20 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
-from segb_server.backend.api.security import AuthenticationFailed, PermissionDenied
+from segb_server.backend.auth import AuthenticationFailed, PermissionDenied
 from segb_server.backend.services import errors as service_errors
-from segb_server.backend.services.export import NotAcceptable
+from segb_server.backend.services.formats import NotAcceptable
 from segb_server.backend.store.base import QueryTimeout, StoreError, StoreRejectedQuery, StoreUnavailable
 
 logger = logging.getLogger("segb.api")
+
+
+class ReferenceQueryRefused(service_errors.ServiceError):
+    """A query refused on the reference's own endpoints (/query): 422 there, as the reference answers; the
+    standard /sparql keeps the protocol's 400."""
+
+    code = "invalid_query"
+
 
 STATUS_BY_ERROR: list[tuple[type[Exception], int]] = [
     (service_errors.InvalidRdf, 400),
@@ -30,6 +38,7 @@ STATUS_BY_ERROR: list[tuple[type[Exception], int]] = [
     (service_errors.EmptyPayload, 422),
     (service_errors.InvalidPayload, 422),
     (service_errors.InvalidParameter, 422),
+    (ReferenceQueryRefused, 422),
     (QueryTimeout, 503),
     (StoreUnavailable, 503),
     (StoreError, 502),
@@ -46,7 +55,8 @@ def _service_error(request: Request, error: Exception) -> JSONResponse:
     if isinstance(error, service_errors.ServiceError):
         body = error_body(status, error.message, error.code, **error.details)
     elif isinstance(error, StoreUnavailable):
-        kind = getattr(request.app.state, "store_kind", "store")
+        services = getattr(request.app.state, "services", None)
+        kind = services.store.kind if services is not None else "store"
         body = error_body(status, f"The triple store ({kind}) is unavailable: {error}", "store_unavailable")
     elif isinstance(error, QueryTimeout):
         body = error_body(status, str(error), "query_timeout", timeout_seconds=error.seconds)
@@ -120,7 +130,7 @@ def document_error_shape(app: FastAPI) -> None:
     def openapi() -> dict[str, object]:
         if app.openapi_schema is None:
             schema = generate()
-            schemas = schema.setdefault("components", {}).setdefault("schemas", {})  # type: ignore[union-attr]
+            schemas = schema.setdefault("components", {}).setdefault("schemas", {})
             schemas["HTTPValidationError"] = ERROR_SCHEMA
             app.openapi_schema = schema
         return app.openapi_schema

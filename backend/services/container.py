@@ -5,16 +5,17 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from segb_server.backend.config import Settings
-from segb_server.backend.services.catalog import Catalog
-from segb_server.backend.services.explain import ExplainService
-from segb_server.backend.services.graph import GraphService
-from segb_server.backend.services.ingest import IngestService
-from segb_server.backend.services.ledger import LEDGER_FILE, Ledger
-from segb_server.backend.services.reports import ReportService
-from segb_server.backend.services.result_cache import OWNED_STORES, DataVersion, ResultCache
+from segb_server.backend.services.ingest.service import IngestService
+from segb_server.backend.services.ops.ledger import LEDGER_FILE, Ledger
+from segb_server.backend.services.ops.result_cache import OWNED_STORES, DataVersion, ResultCache
+from segb_server.backend.services.ops.server_log import ServerLog
 from segb_server.backend.services.shared_context.policy import Policy
 from segb_server.backend.services.shared_context.service import SharedContextService
 from segb_server.backend.services.shared_context.state import STATE_FILE
+from segb_server.backend.services.sparql.catalog import Catalog
+from segb_server.backend.services.views.explain import ExplainService
+from segb_server.backend.services.views.graph import GraphService
+from segb_server.backend.services.views.reports import ReportService
 from segb_server.backend.store.base import Store
 
 # What the reports, the graph explorer and the explanations run; without them the server must not start.
@@ -32,14 +33,17 @@ class Services:
     explain: ExplainService
     ledger: Ledger
     shared_context: SharedContextService
+    server_log: ServerLog | None = None  # the API's own log; None where nothing serves it (the CLI, the demo)
 
     def close(self) -> None:
         self.ledger.close()
         self.shared_context.close()
 
 
-def build_services(settings: Settings, store: Store) -> Services:
-    catalog = Catalog(settings.sparql_dir, required=REQUIRED_QUERIES)
+def build_services(
+    settings: Settings, store: Store, *, server_log: ServerLog | None = None, catalog: Catalog | None = None
+) -> Services:
+    catalog = catalog or Catalog(settings.sparql_dir, required=REQUIRED_QUERIES)
     version = DataVersion()
     cache = ResultCache(version, enabled=store.kind in OWNED_STORES)
     graph = GraphService(catalog, store, cache)
@@ -64,4 +68,5 @@ def build_services(settings: Settings, store: Store) -> Services:
         shared_context=SharedContextService.open(
             Policy.from_settings(settings), None if in_memory else settings.data_dir / STATE_FILE
         ),
+        server_log=server_log,
     )

@@ -67,7 +67,7 @@ class Store(Protocol):
 
         With `timeout`, a remote store is asked to stop after that many seconds and the answer is streamed,
         so the caller can stop reading at its own deadline; the embedded store cannot be interrupted and
-        relies on the caller's deadline alone (segb_server.backend.services.sparql_limits)."""
+        relies on the caller's deadline alone (segb_server.backend.services.sparql.limits)."""
 
     def batches(self, size: int) -> Iterator[list[Quad]]:
         """Stream the events graph as lists of at most `size` quads (in the default graph)."""

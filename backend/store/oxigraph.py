@@ -7,7 +7,7 @@ from collections.abc import Iterator, Sequence
 from itertools import islice
 from pathlib import Path
 
-from pyoxigraph import DefaultGraph, Quad, RdfFormat
+from pyoxigraph import DefaultGraph, Quad, QuerySolutions
 from pyoxigraph import Store as OxStore
 
 from segb_server.backend.store.base import Bindings, QueryResult, StoreRejectedQuery, StoreUnavailable
@@ -34,11 +34,6 @@ class OxigraphStore:
         # Counting new triples exactly needs the check and the write to be one step per post.
         self._write_lock = threading.Lock()
 
-    @property
-    def native(self) -> OxStore:
-        """The pyoxigraph store, for services that keep their own named graphs in it."""
-        return self._store
-
     def ping(self) -> None:
         try:
             self._store.query("ASK {}")
@@ -53,10 +48,6 @@ class OxigraphStore:
                 store.extend(new)
         return len(new)
 
-    def bulk_load(self, path: Path, rdf_format: RdfFormat) -> None:
-        """Load a large file fast; not atomic, so only for offline imports."""
-        self._store.bulk_load(path=str(path), format=rdf_format, to_graph=DefaultGraph())
-
     def clear(self) -> int:
         with self._write_lock:
             removed = self.count()
@@ -65,6 +56,7 @@ class OxigraphStore:
 
     def count(self) -> int:
         solutions = self._store.query(_COUNT)
+        assert isinstance(solutions, QuerySolutions)
         return int(next(iter(solutions))["n"].value)
 
     def query(self, sparql: str, bindings: Bindings | None = None, timeout: float | None = None) -> QueryResult:
@@ -81,9 +73,6 @@ class OxigraphStore:
         quads = self._store.quads_for_pattern(None, None, None, DefaultGraph())
         while batch := list(islice(quads, size)):
             yield batch
-
-    def flush(self) -> None:
-        self._store.flush()
 
     def close(self) -> None:
         self._store.flush()

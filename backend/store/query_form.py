@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import re
-from typing import Literal
+from typing import Literal, cast
 
 QueryForm = Literal["select", "construct", "ask", "describe"]
 
@@ -23,4 +23,4 @@ def query_form(sparql: str) -> QueryForm | None:
     prologue_end = _PROLOGUE.match(sparql)
     start = prologue_end.end() if prologue_end else 0
     form = _FORM.match(sparql, start)
-    return form.group(1).lower() if form else None  # type: ignore[return-value]
+    return cast(QueryForm, form.group(1).lower()) if form else None

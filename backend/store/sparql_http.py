@@ -6,6 +6,7 @@ import io
 import logging
 from collections.abc import Callable, Iterator, Sequence
 from itertools import islice
+from typing import IO, cast
 
 import httpx
 from pyoxigraph import QueryResultsFormat, QuerySolutions, RdfFormat, parse, parse_query_results
@@ -152,8 +153,8 @@ class SparqlHttpStore:
         else:
             body = self._open_stream({**data, **self._timeout_params(timeout)}, headers, timeout)
         if graph_form:
-            return iter(quad.triple for quad in parse(body, RdfFormat.N_TRIPLES))  # type: ignore[union-attr]
-        result = parse_query_results(body, QueryResultsFormat.JSON)
+            return iter(quad.triple for quad in parse(_readable(body), RdfFormat.N_TRIPLES))
+        result = parse_query_results(_readable(body), QueryResultsFormat.JSON)
         if form == "ask" and isinstance(result, QuerySolutions):
             # Virtuoso 7 answers ASK as a one-column SELECT (`__ASK_RETVAL`), one row when the answer is true.
             truth = any(getattr(row[0], "value", "1") not in ("0", "false") for row in result)
@@ -212,9 +213,9 @@ class SparqlHttpStore:
                 if response.status_code >= 400:
                     response.read()
                     self._raise_for_status(response)
-                quads = parse(_ByteStream(response.iter_bytes()), RdfFormat.N_TRIPLES)
+                quads = parse(_readable(_ByteStream(response.iter_bytes())), RdfFormat.N_TRIPLES)
                 while batch := list(islice(quads, size)):
-                    yield batch  # type: ignore[misc]
+                    yield batch
         except httpx.HTTPError as error:
             raise StoreUnavailable(f"{self.kind} does not answer: {error}") from error
 
@@ -239,6 +240,11 @@ class SparqlHttpStore:
 
     def close(self) -> None:
         self._client.close()
+
+
+def _readable(body: bytes | _ByteStream) -> bytes | IO[bytes]:
+    """What pyoxigraph's parsers read: bytes, or a stream (a raw reader is a binary file to them)."""
+    return body if isinstance(body, bytes) else cast(IO[bytes], body)
 
 
 class _ByteStream(io.RawIOBase):

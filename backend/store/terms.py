@@ -7,8 +7,8 @@ import re
 from pyoxigraph import BlankNode
 
 from segb_server.backend.store.base import Bindings
+from segb_server.backend.store.sparql_text import top_level_where
 
-_TOP_LEVEL_WHERE = re.compile(r"\bWHERE\s*\{", re.IGNORECASE)
 _VARIABLE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 
@@ -33,7 +33,7 @@ def bind_values(sparql: str, bindings: Bindings | None) -> str:
             raise ValueError("blank nodes cannot be bound as query parameters")
         cells.append("UNDEF" if term is None else str(term))
     block = f"VALUES ({' '.join('?' + name for name in names)}) {{ ({' '.join(cells)}) }}"
-    match = _TOP_LEVEL_WHERE.search(sparql)
-    if match is None:
+    opening = top_level_where(sparql)
+    if opening is None:
         raise ValueError("query has no WHERE group to bind values into")
-    return f"{sparql[: match.end()]}\n  {block}\n{sparql[match.end() :]}"
+    return f"{sparql[:opening]}\n  {block}\n{sparql[opening:]}"

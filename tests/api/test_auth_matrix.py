@@ -14,7 +14,8 @@ import jwt
 import pytest
 
 from segb_server.backend.api.app import create_app
-from segb_server.backend.services.tokens import mint_token
+from segb_server.backend.auth import mint_token
+from tests.cli.test_demo import REPORTS
 from tests.conftest import make_settings
 from tests.support.live_server import LiveServer
 
@@ -30,8 +31,9 @@ REQUIRED_ROLE: dict[tuple[str, str], str | None] = {
     ("POST", "/ttl"): "logger",
     ("POST", "/ttl/delete_all"): "admin",
     ("GET", "/events"): "auditor",
+    ("GET", "/vocabulary"): PUBLIC,
     ("GET", "/reports"): "auditor",
-    ("GET", "/reports/{name}"): "auditor",
+    **{("GET", f"/reports/{name}"): "auditor" for name in REPORTS},
     ("GET", "/graph"): "auditor",
     ("GET", "/resource"): "auditor",
     ("GET", "/explain"): "auditor",
@@ -56,7 +58,6 @@ IRI = "https://example.org/segb/robots/ari/v1/robot_ari"
 REQUESTS: dict[tuple[str, str], dict[str, object]] = {
     ("POST", "/ttl"): {"json": {"ttl_content": f"<{IRI}> a <http://kb.openrobots.org#Robot> .", "user": "ari"}},
     ("POST", "/ttl/delete_all"): {"json": {"user": "admin"}},
-    ("GET", "/reports/{name}"): {"path": "/reports/participants"},
     ("GET", "/resource"): {"params": {"iri": IRI}},
     ("GET", "/explain"): {"params": {"iri": IRI}},
     ("GET", "/sparql"): {"params": {"query": "ASK { ?s ?p ?o }"}},

@@ -16,7 +16,7 @@ import pytest
 from semantic_log_generator import SEGBPublisher
 
 from segb_server.backend.api.app import create_app
-from segb_server.backend.services.tokens import mint_token
+from segb_server.backend.auth import mint_token
 from tests.conftest import make_settings
 from tests.support.live_server import LiveServer
 from tests.support.scenarios import lobby

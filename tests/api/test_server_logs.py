@@ -12,7 +12,7 @@ import httpx
 import pytest
 
 from segb_server.backend.api.app import create_app
-from segb_server.backend.services.tokens import mint_token
+from segb_server.backend.auth import mint_token
 from segb_server.backend.store.base import Store
 from tests.conftest import make_settings
 from tests.support.live_server import LiveServer

@@ -18,8 +18,8 @@ from rdflib import Graph
 from rdflib.plugins.stores.sparqlstore import SPARQLStore
 
 from segb_server.backend.api.app import create_app
-from segb_server.backend.services.sparql_guard import MAX_QUERY_BYTES
-from segb_server.backend.services.tokens import mint_token
+from segb_server.backend.auth import mint_token
+from segb_server.backend.services.sparql.guard import MAX_QUERY_BYTES
 from segb_server.backend.store.base import Store
 from tests.conftest import make_settings
 from tests.support.live_server import LiveServer
@@ -204,19 +204,25 @@ FORBIDDEN = [
 ]
 
 
-def test_forbidden_queries_get_a_400_naming_the_reason_and_change_nothing(published: Published) -> None:
+def test_forbidden_queries_are_refused_naming_the_reason_and_change_nothing(published: Published) -> None:
     before = published.store.count()
     assert before > 300
     for query, reason, fragment in FORBIDDEN:
-        for response in (
-            sparql(published.url, query),
-            httpx.post(f"{published.url}/sparql", data={"query": query}),
-            httpx.post(
-                f"{published.url}/sparql", content=query.encode(), headers={"Content-Type": "application/sparql-query"}
+        # The standard endpoint answers the protocol's 400; the reference's /query its own 422.
+        for status, response in (
+            (400, sparql(published.url, query)),
+            (400, httpx.post(f"{published.url}/sparql", data={"query": query})),
+            (
+                400,
+                httpx.post(
+                    f"{published.url}/sparql",
+                    content=query.encode(),
+                    headers={"Content-Type": "application/sparql-query"},
+                ),
             ),
-            httpx.get(f"{published.url}/query", params={"query": query}),
+            (422, httpx.get(f"{published.url}/query", params={"query": query})),
         ):
-            assert response.status_code == 400, (query, response.text)
+            assert response.status_code == status, (query, response.text)
             body = response.json()
             assert (body["error"], body["reason"]) == ("invalid_query", reason), query
             assert fragment in body["detail"], body["detail"]
@@ -258,14 +264,35 @@ def test_negotiation_failures_and_preferences(memory_api: LiveServer) -> None:
     assert sparql(url, NAMES, accept="text/html").status_code == 406
     assert sparql(url, NAMES, format="turtle").status_code == 406
     assert sparql(url, NAME_TRIPLES, accept="text/csv").status_code == 406
-    bogus = sparql(url, NAMES, format="yaml")
-    assert (bogus.status_code, bogus.json()["error"]) == (422, "invalid_parameter")
+    # `format` is a hint, read the way stock clients send it: an unknown value leaves the choice to Accept.
+    bogus = sparql(url, NAMES, accept="text/csv", format="yaml")
+    assert (bogus.status_code, bogus.headers["content-type"]) == (200, "text/csv; charset=utf-8")
     preferred = sparql(url, NAMES, accept="text/csv;q=0.5, application/sparql-results+xml, text/html")
     assert preferred.headers["content-type"] == "application/sparql-results+xml"
     assert sparql(url, NAMES, accept="text/*").headers["content-type"] == "text/csv; charset=utf-8"
     assert sparql(url, NAMES, accept="application/json").headers["content-type"] == "application/sparql-results+json"
     assert sparql(url, NAME_TRIPLES, accept="application/*").headers["content-type"] == "application/n-triples"
     assert sparql(url, NAMES).headers["vary"] == "Accept"
+
+
+def test_format_hints_as_sparqlwrapper_sends_them(memory_api: LiveServer) -> None:
+    url = memory_api.url
+
+    def get(query: str, *formats: str) -> httpx.Response:
+        params = [("query", query), *(("format", value) for value in formats)]
+        return httpx.get(f"{url}/sparql", params=params, timeout=60)
+
+    agreeing = get(NAMES, "tsv", "text/tab-separated-values")
+    assert agreeing.headers["content-type"] == "text/tab-separated-values; charset=utf-8"
+    listed = get(NAME_TRIPLES, "json-ld", "application/ld+json,application/x-json+ld")
+    assert listed.headers["content-type"] == "application/ld+json"
+    assert get(NAME_TRIPLES, "xml").headers["content-type"] == "application/rdf+xml"  # RDF/XML for a graph
+    assert get(NAMES, "xml").headers["content-type"] == "application/sparql-results+xml"
+    assert get(NAME_TRIPLES, "n3").headers["content-type"] == "text/n3; charset=utf-8"
+    disagreeing = get(NAMES, "json", "csv")
+    assert (disagreeing.status_code, disagreeing.json()["parameter"]) == (422, "format")
+    two_queries = httpx.get(f"{url}/sparql", params=[("query", NAMES), ("query", NAMES)])
+    assert (two_queries.status_code, two_queries.json()["reason"]) == (400, "multiple_queries")
 
 
 def test_bad_requests(memory_api: LiveServer) -> None:

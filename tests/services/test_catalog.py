@@ -7,8 +7,8 @@ from pathlib import Path
 import pytest
 
 from segb_server.backend.config import PACKAGE_ROOT
-from segb_server.backend.services.catalog import Catalog, paged
 from segb_server.backend.services.errors import InvalidParameter, NotFound
+from segb_server.backend.services.sparql.catalog import Catalog, paged
 from segb_server.backend.store.base import select
 from segb_server.backend.store.oxigraph import OxigraphStore
 from segb_server.backend.store.query_form import query_form

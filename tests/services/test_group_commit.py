@@ -9,7 +9,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import pytest
 
-from segb_server.backend.services.group_commit import GroupCommit
+from segb_server.backend.services.ingest.group_commit import GroupCommit
 
 
 class Recorder:

@@ -2,9 +2,14 @@
 
 from __future__ import annotations
 
-from pyoxigraph import NamedNode, RdfFormat, parse
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from pyoxigraph import NamedNode, Quad, RdfFormat, parse
+from rdflib import BNode, Graph, URIRef
+from rdflib import Literal as RdfLiteral
+from rdflib.compare import isomorphic
 
-from segb_server.backend.services.skolem import skolemize
+from segb_server.backend.services.ingest.skolem import skolemize
 
 BASE = "http://amor-segb/.well-known/genid/"
 
@@ -51,3 +56,89 @@ def test_nested_blank_nodes_are_told_apart_by_their_neighbours() -> None:
 def test_graphs_without_blank_nodes_are_returned_unchanged() -> None:
     quads = list(parse((PREFIX + "ex:a ex:p ex:b .").encode(), RdfFormat.TURTLE))
     assert skolemize(quads, BASE) == quads
+
+
+# --- never merged, whatever the structure -----------------------------------------------------------------
+
+EX = "https://ex.org/"
+
+
+@st.composite
+def blank_structures(draw: st.DrawFn) -> list[tuple[str, str, str]]:
+    """Random blank-node structures as (subject, predicate, object) N-Triples terms: chains, trees, cycles,
+    lists of repeated values and symmetric pairs, hung from IRIs and tied together at random."""
+    triples: list[tuple[str, str, str]] = []
+    count = draw(st.integers(min_value=1, max_value=25))
+    nodes = [f"_:n{index}" for index in range(count)]
+    shape = draw(st.sampled_from(["chain", "tree", "cycle", "list", "pairs", "random"]))
+    predicates = [f"<{EX}p>", f"<{EX}q>"]
+    for index, node in enumerate(nodes[1:], start=1):
+        if shape == "chain":
+            triples.append((nodes[index - 1], predicates[0], node))
+        elif shape == "tree":
+            triples.append((nodes[draw(st.integers(0, index - 1))], draw(st.sampled_from(predicates)), node))
+        elif shape == "cycle":
+            triples.append((nodes[index - 1], predicates[0], node))
+        elif shape == "list":
+            triples.append((nodes[index - 1], "<http://www.w3.org/1999/02/22-rdf-syntax-ns#rest>", node))
+        elif shape == "random":
+            other = nodes[draw(st.integers(0, count - 1))]
+            triples.append((node, draw(st.sampled_from(predicates)), other))
+    if shape == "cycle" and count > 1:
+        triples.append((nodes[-1], predicates[0], nodes[0]))
+    for node in nodes:  # every node gets the same literal: only the structure tells them apart
+        if shape in ("list", "pairs") or draw(st.booleans()):
+            triples.append((node, f"<{EX}value>", '"0"'))
+        if shape == "pairs" or draw(st.booleans()):
+            triples.append((f"<{EX}root>", predicates[1], node))
+    return triples
+
+
+def as_ntriples(triples: list[tuple[str, str, str]]) -> bytes:
+    return "".join(f"{s} {p} {o} .\n" for s, p, o in dict.fromkeys(triples)).encode()
+
+
+def unskolemized(quads: list[Quad]) -> Graph:
+    """The skolemised graph with its skolem IRIs turned back into blank nodes (one per IRI)."""
+    graph = Graph()
+    for quad in quads:
+        terms = []
+        for term in (quad.subject, quad.predicate, quad.object):
+            if isinstance(term, NamedNode) and term.value.startswith(BASE):
+                terms.append(BNode(term.value[len(BASE) :]))
+            elif isinstance(term, NamedNode):
+                terms.append(URIRef(term.value))
+            else:
+                terms.append(RdfLiteral(term.value))
+        graph.add(tuple(terms))  # type: ignore[arg-type]
+    return graph
+
+
+@settings(max_examples=150)
+@given(blank_structures())
+def test_random_structures_round_trip_as_isomorphic_graphs_and_repost_adds_nothing(
+    triples: list[tuple[str, str, str]],
+) -> None:
+    data = as_ntriples(triples)
+    skolemized = skolemize(list(parse(data, RdfFormat.N_TRIPLES)), BASE)
+    original = Graph().parse(data=data.decode(), format="nt")
+    assert len(set(skolemized)) == len(original)  # nothing merged: as many triples as were sent
+    assert isomorphic(unskolemized(skolemized), original)
+    again = skolemize(list(parse(data, RdfFormat.N_TRIPLES)), BASE)
+    assert set(again) == set(skolemized)  # re-posting the same document adds no triple
+
+
+def test_a_hundred_and_a_thousand_item_lists_of_one_value_keep_every_member() -> None:
+    for size in (100, 1000):
+        turtle = f"<{EX}list> <{EX}readings> ( {' '.join(['0'] * size)} ) ."
+        quads = skolemize(list(parse(turtle.encode(), RdfFormat.TURTLE)), BASE)
+        firsts = [q for q in quads if q.predicate.value.endswith("#first")]
+        assert len(set(quads)) == 2 * size + 1
+        assert len({q.subject for q in firsts}) == size
+
+
+def test_fifty_thousand_nested_blank_nodes_stay_distinct() -> None:
+    depth = 50_000
+    turtle = f"<{EX}s> <{EX}p> " + f"[ <{EX}p> " * depth + '"x"' + " ]" * depth + " ."
+    quads = skolemize(list(parse(turtle.encode(), RdfFormat.TURTLE)), BASE)
+    assert len(set(quads)) == depth + 1

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from segb_server.backend.services.errors import InvalidQuery, PayloadTooLarge
-from segb_server.backend.services.sparql_guard import MAX_QUERY_BYTES, QueryTooLong, check_read_only, guard_query
+from segb_server.backend.services.sparql.guard import MAX_QUERY_BYTES, QueryTooLong, guard_query
 
 EVENTS = "http://amor-segb/events"
 SPARQL_DIR = Path(__file__).resolve().parents[2] / "sparql"
@@ -34,7 +34,7 @@ def rejection(query: str, events_graph: str | None = EVENTS) -> InvalidQuery:
     ],
 )
 def test_read_queries_pass_and_report_their_form(query: str, form: str) -> None:
-    assert check_read_only(query, EVENTS) == form
+    assert guard_query(query, EVENTS).form == form
     assert guard_query(query, EVENTS).text == query
 
 
@@ -42,7 +42,7 @@ def test_the_project_report_and_graph_queries_pass() -> None:
     files = [path for path in sorted(SPARQL_DIR.rglob("*.rq")) if "# same-as:" not in path.read_text()]
     assert files
     for path in files:
-        assert check_read_only(path.read_text(), EVENTS) in ("select", "construct"), path
+        assert guard_query(path.read_text(), EVENTS).form in ("select", "construct"), path
 
 
 FORBIDDEN = [
@@ -117,7 +117,7 @@ def test_the_most_serious_problem_is_reported_first() -> None:
 def test_too_long_a_query_is_a_413() -> None:
     query = "SELECT * { ?s ?p ?o }" + " " * MAX_QUERY_BYTES
     with pytest.raises(QueryTooLong) as caught:
-        check_read_only(query)
+        guard_query(query)
     assert isinstance(caught.value, PayloadTooLarge)
     assert caught.value.details["reason"] == "too_long"
 

@@ -12,7 +12,7 @@ import httpx
 import pytest
 from pyoxigraph import Literal
 
-from segb_server.backend.services.namespaces import PREFIXES
+from segb_server.backend.vocabulary import PREFIXES
 from tests.conftest import UiStack
 from tests.support.scenarios import lobby
 

@@ -7,7 +7,7 @@ from collections.abc import Iterator
 import httpx
 import pytest
 
-from segb_server.backend.services.tokens import mint_token
+from segb_server.backend.auth import mint_token
 from tests.conftest import UiStack, start_ui_stack
 
 SECRET = "k" * 40

@@ -9,7 +9,7 @@ from typing import Any
 import httpx
 import pytest
 
-from segb_server.backend.services.tokens import mint_token
+from segb_server.backend.auth import mint_token
 from tests.conftest import UiStack, start_ui_stack
 
 pytestmark = pytest.mark.browser

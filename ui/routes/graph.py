@@ -10,10 +10,10 @@ from __future__ import annotations
 from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse, Response
 
-from segb_server.backend.services.kinds import KINDS
 from segb_server.ui.choices import participant_choices
 from segb_server.ui.pages import backend, render, token
 from segb_server.ui.query_params import query_values
+from segb_server.ui.vocabulary import current
 
 router = APIRouter()
 
@@ -39,7 +39,7 @@ async def graph_page(request: Request) -> HTMLResponse:
             "parameters": parameters,
             "chosen_kinds": set(request.query_params.getlist("kind")),
             "choices": choices,
-            "kinds": KINDS,
+            "kinds": current().kinds,
             "data_src": "/kg-graph/data" + (f"?{data_query}" if data_query else ""),
         },
     )

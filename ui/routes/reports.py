@@ -8,6 +8,7 @@ from typing import Any
 from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse, Response
 
+from segb_server.ui.api_client import BackendError
 from segb_server.ui.choices import participant_choices
 from segb_server.ui.pages import backend, render, token
 from segb_server.ui.query_params import query_values
@@ -15,21 +16,41 @@ from segb_server.ui.report_views import OVERVIEW_ORDER, view_of
 
 router = APIRouter()
 
-FILTER_NAMES = ("robot", "human", "since", "until", "threshold")
 OVERVIEW_ROWS = 200
 PAGE_ROWS = 500
+_catalog: dict[str, dict[str, Any]] = {}
 
 
-def report_filters(request: Request) -> dict[str, str]:
-    return query_values(request, FILTER_NAMES)
+async def report_catalog(request: Request) -> dict[str, dict[str, Any]]:
+    """Every report the API serves, with its parameters (GET /reports), asked once: the API loads its catalog
+    at start-up, so it does not change while it runs."""
+    if not _catalog:
+        listing = await backend(request).get_json("/reports", token=token(request))
+        _catalog.update({report["name"]: report for report in listing["reports"]})
+    return _catalog
 
 
-def _paging(request: Request, default_limit: int) -> tuple[int, int]:
+def parameters_of(reports: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The parameters of the reports, each name once, in the order the reports declare them."""
+    found: dict[str, dict[str, Any]] = {}
+    for report in reports:
+        for parameter in report["parameters"]:
+            found.setdefault(parameter["name"], parameter)
+    return list(found.values())
+
+
+def report_filters(request: Request, parameters: list[dict[str, Any]]) -> dict[str, str]:
+    """The page's values for these parameters (times the browser picked get their UTC zone)."""
+    times = tuple(p["name"] for p in parameters if p["type"] == "dateTime")
+    return query_values(request, tuple(p["name"] for p in parameters), times)
+
+
+def _paging(request: Request, default_limit: int, max_limit: int) -> tuple[int, int]:
     def whole(name: str, default: int) -> int:
         raw = request.query_params.get(name, "")
         return int(raw) if raw.isdigit() else default
 
-    return max(1, min(whole("limit", default_limit), 10_000)), whole("offset", 0)
+    return max(1, min(whole("limit", default_limit), max_limit)), whole("offset", 0)
 
 
 def _section(name: str, table: dict[str, Any], described: dict[str, Any]) -> dict[str, Any]:
@@ -44,10 +65,10 @@ def _supported(filters: dict[str, str], described: dict[str, Any]) -> dict[str, 
 @router.get("/reports", response_class=HTMLResponse)
 async def reports_overview(request: Request) -> HTMLResponse:
     client, user_token = backend(request), token(request)
-    listing = (await client.get_json("/reports", token=user_token))["reports"]
-    described = {report["name"]: report for report in listing}
+    described = await report_catalog(request)
     names = [name for name in OVERVIEW_ORDER if name in described] + sorted(set(described) - set(OVERVIEW_ORDER))
-    filters = report_filters(request)
+    parameters = parameters_of([described[name] for name in names])
+    filters = report_filters(request, parameters)
 
     async def fetch(name: str) -> dict[str, Any]:
         params = {**_supported(filters, described[name]), "limit": OVERVIEW_ROWS}
@@ -58,26 +79,34 @@ async def reports_overview(request: Request) -> HTMLResponse:
     return render(
         request,
         "reports.html",
-        {"sections": sections, "filters": filters, "choices": choices, "query": request.url.query},
+        {
+            "sections": sections,
+            "parameters": parameters,
+            "filters": filters,
+            "choices": choices,
+            "query": request.url.query,
+        },
     )
 
 
 @router.get("/reports/{name}", response_class=HTMLResponse)
 async def one_report(request: Request, name: str) -> HTMLResponse:
     client, user_token = backend(request), token(request)
-    filters = report_filters(request)
-    limit, offset = _paging(request, PAGE_ROWS)
-    table, choices, listing = await asyncio.gather(
+    described = (await report_catalog(request)).get(name)
+    if described is None:
+        raise BackendError(404, f"No report named '{name}'.")
+    filters = report_filters(request, described["parameters"])
+    limit, offset = _paging(request, PAGE_ROWS, described["max_limit"])
+    table, choices = await asyncio.gather(
         client.get_json(f"/reports/{name}", token=user_token, params={**filters, "limit": limit, "offset": offset}),
         participant_choices(request),
-        client.get_json("/reports", token=user_token),
     )
-    described = next(report for report in listing["reports"] if report["name"] == name)
     return render(
         request,
         "report.html",
         {
             "report": _section(name, table, described),
+            "parameters": described["parameters"],
             "filters": filters,
             "choices": choices,
             "query": request.url.query,
@@ -92,8 +121,12 @@ async def download_report(request: Request, name: str, fmt: str) -> Response:
     """The report as a file, fetched with the viewer's token (the browser never talks to the API)."""
     if fmt not in ("csv", "json"):
         return Response("Downloads are .csv or .json", status_code=404, media_type="text/plain")
-    limit, offset = _paging(request, 10_000)
-    params = {**report_filters(request), "limit": limit, "offset": offset, "format": fmt}
+    described = (await report_catalog(request)).get(name)
+    if described is None:
+        raise BackendError(404, f"No report named '{name}'.")
+    limit, offset = _paging(request, described["max_limit"], described["max_limit"])
+    filters = report_filters(request, described["parameters"])
+    params = {**filters, "limit": limit, "offset": offset, "format": fmt}
     response = await backend(request).request("GET", f"/reports/{name}", token=token(request), params=params)
     return Response(
         response.content,

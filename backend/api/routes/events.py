@@ -9,8 +9,8 @@ from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import StreamingResponse
 
 from segb_server.backend.api.deps import Auditor, ServicesDep
-from segb_server.backend.services.errors import InvalidParameter
-from segb_server.backend.services.export import EXPORT_FORMATS, FORMAT_NAMES, negotiate, stream_graph
+from segb_server.backend.services.formats import EXPORTS, names, negotiate
+from segb_server.backend.services.views.export import stream_graph
 
 router = APIRouter(tags=["export"])
 
@@ -23,19 +23,17 @@ router = APIRouter(tags=["export"])
         "`application/n-quads` or `application/ld+json` (or `?format=ntriples|nquads|jsonld|turtle`) "
         "choose another syntax. 406 when none of the accepted types can be produced."
     ),
-    responses={200: {"content": {media: {} for media in EXPORT_FORMATS}}, 406: {}},
+    responses={200: {"content": {fmt.media_type: {} for fmt in EXPORTS}}, 406: {}},
     response_class=StreamingResponse,
 )
 async def export_events(
     request: Request,
     services: ServicesDep,
     principal: Auditor,
-    format: str | None = Query(None, description="turtle, ntriples, nquads or jsonld; overrides Accept."),
+    format: str | None = Query(None, description=f"{', '.join(names(EXPORTS))}; overrides Accept."),
 ) -> StreamingResponse:
-    if format is not None and format not in FORMAT_NAMES:
-        raise InvalidParameter("format", f"must be one of {', '.join(FORMAT_NAMES)}")
-    fmt = EXPORT_FORMATS[FORMAT_NAMES[format]] if format else negotiate(request.headers.get("accept"))
+    fmt = negotiate(EXPORTS, request.headers.get("accept"), format, what="the events graph")
     chunks = stream_graph(services.store, fmt)
     # Pull the first chunk here so a store that is down is a 503, not a response cut off midway.
     first = await run_in_threadpool(next, chunks, b"")
-    return StreamingResponse(chain([first], chunks), media_type=f"{fmt.media_type}; charset=utf-8")
+    return StreamingResponse(chain([first], chunks), media_type=fmt.content_type)

@@ -10,9 +10,9 @@ from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import JSONResponse
 
 from segb_server.backend.api.deps import Auditor, ServicesDep
-from segb_server.backend.services.catalog import Parameter, to_term
-from segb_server.backend.services.graph import MAX_NODES, GraphRequest, parse_types
-from segb_server.backend.services.term_values import iso_time
+from segb_server.backend.services.sparql.catalog import Parameter, to_term
+from segb_server.backend.services.views.graph import MAX_NODES, GraphRequest, parse_types
+from segb_server.backend.services.views.term_values import iso_time
 
 router = APIRouter(tags=["graph"])
 
@@ -21,7 +21,11 @@ Iri = Annotated[str, Query(description="Absolute IRI of a resource")]
 
 def _iri(name: str, value: str | None) -> str | None:
     """Validated like a report filter: 422 naming the parameter when it is not an absolute IRI."""
-    return None if not value else to_term(Parameter(name, "iri"), value).value
+    return None if not value else _required_iri(name, value)
+
+
+def _required_iri(name: str, value: str) -> str:
+    return to_term(Parameter(name, "iri"), value).value
 
 
 def _time(name: str, value: str | None) -> str | None:
@@ -68,7 +72,7 @@ async def graph(
 
 @router.get("/resource", summary="Every triple about one resource, both directions, with labels")
 async def resource(iri: Iri, services: ServicesDep, principal: Auditor) -> dict[str, Any]:
-    return await run_in_threadpool(services.graph.resource, _iri("iri", iri))
+    return await run_in_threadpool(services.graph.resource, _required_iri("iri", iri))
 
 
 @router.get(
@@ -83,4 +87,4 @@ async def resource(iri: Iri, services: ServicesDep, principal: Auditor) -> dict[
     ),
 )
 async def explain(iri: Iri, services: ServicesDep, principal: Auditor) -> dict[str, Any]:
-    return await run_in_threadpool(services.explain.explain, _iri("iri", iri))
+    return await run_in_threadpool(services.explain.explain, _required_iri("iri", iri))

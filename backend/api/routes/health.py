@@ -5,9 +5,10 @@ from __future__ import annotations
 import json
 
 import anyio
-from fastapi import APIRouter, Request
+from fastapi import APIRouter
 from fastapi.responses import JSONResponse
 
+from segb_server.backend.api.deps import ServicesDep
 from segb_server.backend.store.base import StoreError
 
 router = APIRouter(tags=["health"])
@@ -49,8 +50,8 @@ async def live() -> ProbeResponse:
         503: {"content": {"application/json": {"example": {"ready": False, "virtuoso": False, "detail": "…"}}}},
     },
 )
-async def ready(request: Request) -> ProbeResponse:
-    store = request.app.state.services.store
+async def ready(services: ServicesDep) -> ProbeResponse:
+    store = services.store
     try:
         await anyio.to_thread.run_sync(store.ping, limiter=_probe_threads)
     except StoreError as error:

@@ -7,8 +7,8 @@ from fastapi.concurrency import run_in_threadpool
 from pydantic import BaseModel, Field
 
 from segb_server.backend.api.deps import Admin, LimitedBody, Logger, ServicesDep
-from segb_server.backend.services.ingest import IngestResult
-from segb_server.backend.services.payloads import DeleteAllRequest, IngestRequest, decode_ingest_body
+from segb_server.backend.services.ingest.payloads import DeleteAllRequest, IngestRequest, decode_ingest_body
+from segb_server.backend.services.ingest.service import IngestResult
 
 router = APIRouter(tags=["ingest"])
 

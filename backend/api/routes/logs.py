@@ -4,11 +4,12 @@ from __future__ import annotations
 
 from typing import Any
 
-from fastapi import APIRouter, Query, Request
+from fastapi import APIRouter, Query
 from pydantic import BaseModel, Field
 
-from segb_server.backend.api.deps import Admin
-from segb_server.backend.services.server_log import LEVELS, ServerLog
+from segb_server.backend.api.deps import Admin, ServicesDep
+from segb_server.backend.services.errors import NotFound
+from segb_server.backend.services.ops.server_log import LEVELS
 
 router = APIRouter(tags=["operations"])
 
@@ -50,12 +51,14 @@ class LogEntries(BaseModel):
     ),
 )
 def server_log(
-    request: Request,
+    services: ServicesDep,
     principal: Admin,
     limit: int = Query(100, ge=1, le=MAX_ENTRIES, description=f"Most entries returned (1 to {MAX_ENTRIES})."),
     level: str = Query("DEBUG", pattern=LEVEL_PATTERN, description=f"Lowest level shown: {', '.join(LEVELS)}."),
     contains: str | None = Query(None, max_length=200, description="Text the entry must hold (any case)."),
 ) -> dict[str, Any]:
     # A plain `def` route runs in the thread pool, so reading the log files stays off the event loop.
-    log: ServerLog = request.app.state.server_log
+    log = services.server_log
+    if log is None:
+        raise NotFound("This server keeps no log.")
     return {"entries": log.read(limit, level.upper(), contains), "source": log.source}

@@ -99,7 +99,7 @@ class ContextOut(BaseModel):
         return cls(
             uri=context.uri,
             event_kind=context.event_kind,
-            status=context.status,  # type: ignore[arg-type]
+            status=context.status,
             observed_at=utc_iso(context.observed_at),
             subject_uri=context.subject,
             modality=context.modality,

@@ -6,7 +6,7 @@ from fastapi import APIRouter
 from pydantic import BaseModel, Field
 
 from segb_server.backend.api.deps import Auditor, ServicesDep
-from segb_server.backend.services.query_examples import query_examples
+from segb_server.backend.services.sparql.examples import query_examples
 
 router = APIRouter(tags=["sparql"])
 

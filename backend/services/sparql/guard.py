@@ -18,12 +18,14 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 from pyparsing import ParseBaseException, ParseResults
-from rdflib.plugins.sparql.parser import expandUnicodeEscapes, parseQuery, parseUpdate
+from rdflib.plugins.sparql.parser import expandUnicodeEscapes
 from rdflib.plugins.sparql.parserutils import CompValue
 from rdflib.term import URIRef
 
 from segb_server.backend.services.errors import InvalidQuery, PayloadTooLarge
+from segb_server.backend.services.sparql.parser import parse_query, parse_update
 from segb_server.backend.store.query_form import QueryForm, query_form
+from segb_server.backend.store.sparql_text import code_only as _code_only
 
 MAX_QUERY_BYTES = 100_000
 
@@ -31,6 +33,7 @@ MAX_QUERY_BYTES = 100_000
 REASONS = (
     "too_long",
     "empty",
+    "multiple_queries",
     "virtuoso_pragma",
     "update",
     "syntax",
@@ -62,16 +65,6 @@ _CALLABLE_NAMESPACES = (
     "http://www.w3.org/2005/xpath-functions/math#",
 )
 
-# Strings, IRIs and comments, found left to right so a `#` inside a string is not taken for a comment.
-_LEXEMES = re.compile(
-    r'"""(?:[^"\\]|\\.|"(?!""))*"""'
-    r"|'''(?:[^'\\]|\\.|'(?!''))*'''"
-    r'|"(?:[^"\\\n\r]|\\.)*"'
-    r"|'(?:[^'\\\n\r]|\\.)*'"
-    r"|<[^<>\"{}|^`\\\x00-\x20]*>"
-    r"|#[^\n\r]*",
-    re.DOTALL,
-)
 # Keywords are bare words: not part of a variable (?x, $x), prefixed name (ex:x, x:) or blank node (_:x).
 _WORD_START = r"(?<![\w:?$.\-])"
 _DEFINE = re.compile(_WORD_START + r"define\s+[A-Za-z_][\w.\-]*:", re.IGNORECASE)
@@ -92,15 +85,10 @@ class QueryTooLong(PayloadTooLarge):
     """The query text is over MAX_QUERY_BYTES (answered with 413)."""
 
 
-def check_read_only(query: str, events_graph: str | None = None) -> QueryForm:
-    """The query's form ("select", "ask", "construct" or "describe") when it may run; else raise InvalidQuery
-    (or QueryTooLong) with `reason`, `line` and `column` in its details. With `events_graph` None, any FROM
-    clause is rejected."""
-    return guard_query(query, events_graph).form
-
-
 def guard_query(query: str, events_graph: str | None = None) -> CheckedQuery:
-    """Check `query` as `check_read_only` does and return it ready to run (FROM <events graph> dropped)."""
+    """The query's form ("select", "ask", "construct" or "describe") and the text to run (FROM <events graph>
+    dropped) when it may run; else raise InvalidQuery (or QueryTooLong) with `reason`, `line` and `column` in
+    its details. With `events_graph` None, any FROM clause is rejected."""
     size = len(query.encode("utf-8"))
     if size > MAX_QUERY_BYTES:
         raise QueryTooLong(
@@ -123,7 +111,7 @@ def _guard_parsed(query: str, events_graph: str | None) -> CheckedQuery:
     except ValueError as error:
         raise query_rejected("syntax", f"Invalid SPARQL syntax: {error}.") from None
     try:
-        tree = parseQuery(text)
+        tree = parse_query(text)
     except ParseBaseException as error:
         raise _not_a_query(text, error) from None
     except RecursionError:
@@ -183,23 +171,10 @@ def _update_verb(text: str, code: str) -> str | None:
     if first and first.group().upper() in UPDATE_VERBS:
         return first.group().upper()
     try:
-        parseUpdate(text)
+        parse_update(text)
     except (ParseBaseException, RecursionError):
         return None
     return "update"
-
-
-def _code_only(text: str) -> str:
-    """The text with strings and comments blanked and IRIs emptied (same length and line breaks), so keyword
-    searches cannot match inside them."""
-
-    def blank(match: re.Match[str]) -> str:
-        lexeme = match.group()
-        if lexeme.startswith("<"):
-            return "<" + " " * (len(lexeme) - 2) + ">"
-        return re.sub(r"[^\n]", " ", lexeme)
-
-    return _LEXEMES.sub(blank, text)
 
 
 def _position(text: str, offset: int) -> tuple[int, int]:

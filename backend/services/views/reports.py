@@ -4,23 +4,40 @@ from __future__ import annotations
 
 import csv
 import io
+from collections.abc import Mapping
 from dataclasses import dataclass
 
-from segb_server.backend.services.catalog import Catalog, CatalogQuery, paged
 from segb_server.backend.services.errors import NotFound
-from segb_server.backend.services.result_cache import DataVersion, ResultCache
-from segb_server.backend.services.term_values import JsonValue, json_value
+from segb_server.backend.services.ops.result_cache import DataVersion, ResultCache
+from segb_server.backend.services.sparql.catalog import Catalog, CatalogQuery, paged
+from segb_server.backend.services.views.term_values import JsonValue, json_value
 from segb_server.backend.store.base import Bindings, Store, select
 
 FOLDER = "reports"
+DEFAULT_LIMIT = 1000
+MAX_LIMIT = 10_000
+
+
+def describe(query: CatalogQuery) -> dict[str, object]:
+    """A report as the API lists it: name, title, description and its parameters (from the .rq header)."""
+    return {
+        "name": short_name(query),
+        "title": query.title,
+        "description": query.description,
+        "parameters": [
+            {"name": p.name, "type": p.type, "default": p.default, "description": p.help}
+            for p in query.parameters.values()
+        ],
+        "href": f"/reports/{short_name(query)}",
+        "max_limit": MAX_LIMIT,
+    }
 
 
 @dataclass(frozen=True)
 class ReportTable:
     """One page of a report. `has_more` tells whether rows follow past `offset + limit`."""
 
-    report: str
-    title: str
+    query: CatalogQuery
     columns: list[str]
     rows: list[dict[str, JsonValue]]
     limit: int
@@ -28,9 +45,13 @@ class ReportTable:
     has_more: bool
 
     def as_json(self) -> dict[str, object]:
+        described = describe(self.query)
         return {
-            "report": self.report,
-            "title": self.title,
+            "report": described["name"],
+            "title": self.query.title,
+            "description": self.query.description,
+            "parameters": described["parameters"],
+            "max_limit": MAX_LIMIT,
             "columns": self.columns,
             "rows": self.rows,
             "limit": self.limit,
@@ -75,7 +96,7 @@ class ReportService:
     def names(self) -> list[str]:
         return [short_name(query) for query in self.reports()]
 
-    def run(self, name: str, filters: dict[str, str | None], limit: int, offset: int = 0) -> ReportTable:
+    def run(self, name: str, filters: Mapping[str, str | None], limit: int, offset: int = 0) -> ReportTable:
         """Rows `offset`…`offset+limit` of a report; blocking (store I/O), so call it off the event loop."""
         query = self.report(name)
         bindings = query.bindings(filters)
@@ -86,9 +107,7 @@ class ReportService:
         # One row past the page tells whether another page exists without counting the whole result.
         result = select(self.store, paged(query.text, limit + 1, offset), bindings)
         rows = [{column: json_value(row.get(column)) for column in result.columns} for row in result.rows[:limit]]
-        return ReportTable(
-            short_name(query), query.title, result.columns, rows, limit, offset, len(result.rows) > limit
-        )
+        return ReportTable(query, result.columns, rows, limit, offset, len(result.rows) > limit)
 
 
 def short_name(query: CatalogQuery) -> str:

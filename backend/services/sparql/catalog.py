@@ -22,11 +22,13 @@ query with its own title, description and parameter defaults (a preset, not a co
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from datetime import datetime
 from decimal import Decimal, InvalidOperation
 from pathlib import Path
 from typing import Literal as TypingLiteral
+from typing import cast
 
 from pyoxigraph import Literal, NamedNode
 
@@ -62,7 +64,7 @@ class CatalogQuery:
     text: str
     parameters: dict[str, Parameter] = field(default_factory=dict)
 
-    def bindings(self, values: dict[str, str | None]) -> Bindings:
+    def bindings(self, values: Mapping[str, str | None]) -> Bindings:
         """Typed terms for the given values (strings from a query string); 422 naming a bad parameter."""
         unknown = sorted(set(values) - set(self.parameters))
         if unknown:
@@ -131,12 +133,8 @@ def _read_header(text: str) -> _Header:
         if not line.startswith("#"):
             break
         if match := _PARAM.match(line):
-            parameters[match["name"]] = Parameter(
-                match["name"],
-                match["type"],
-                (match["help"] or "").strip(),
-                match["default"],  # type: ignore[arg-type]
-            )
+            kind = cast(ParameterType, match["type"])  # the pattern admits only the five types
+            parameters[match["name"]] = Parameter(match["name"], kind, (match["help"] or "").strip(), match["default"])
         elif match := _HEADER.match(line):
             meta[match.group(1)] = match.group(2).strip()
     return _Header(meta, parameters, text)
@@ -196,5 +194,5 @@ class Catalog:
         prefix = folder.rstrip("/") + "/"
         return [query for name, query in self._queries.items() if name.startswith(prefix)]
 
-    def __iter__(self):  # type: ignore[no-untyped-def]
+    def __iter__(self) -> Iterator[CatalogQuery]:
         return iter(self._queries.values())

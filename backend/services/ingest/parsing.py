@@ -7,7 +7,7 @@ from itertools import islice
 from pyoxigraph import Quad, RdfFormat, parse
 
 from segb_server.backend.services.errors import InvalidRdf, PayloadTooLarge
-from segb_server.backend.services.skolem import might_contain_blank_nodes, skolemize
+from segb_server.backend.services.ingest.skolem import might_contain_blank_nodes, skolemize
 
 SYNTAX_NAMES = {RdfFormat.TURTLE: "Turtle", RdfFormat.N_TRIPLES: "N-Triples"}
 
@@ -27,7 +27,7 @@ def parse_triples(data: bytes, rdf_format: RdfFormat, *, max_triples: int, skole
         raise PayloadTooLarge(f"The payload has more than {max_triples} triples (MAX_TRIPLES_PER_POST).")
     if might_contain_blank_nodes(data):
         quads = skolemize(quads, skolem_base)
-    return quads  # type: ignore[return-value]
+    return quads
 
 
 def invalid_rdf(error: SyntaxError, rdf_format: RdfFormat) -> InvalidRdf:

@@ -7,12 +7,13 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from itertools import islice
 from pathlib import Path
+from typing import IO, cast
 
 from pyoxigraph import RdfFormat, parse
 
 from segb_server.backend.services.errors import InvalidParameter
-from segb_server.backend.services.rdf_parsing import invalid_rdf, parse_triples
-from segb_server.backend.services.skolem import might_contain_blank_nodes
+from segb_server.backend.services.ingest.parsing import invalid_rdf, parse_triples
+from segb_server.backend.services.ingest.skolem import might_contain_blank_nodes
 from segb_server.backend.store.base import Store
 
 BATCH_TRIPLES = 20_000
@@ -50,10 +51,9 @@ def import_file(store: Store, path: Path, *, skolem_base: str, progress: Progres
         return ImportResult(path, len(quads), new)
     read = new = 0
     with path.open("rb") as raw:
-        reader = _CountingReader(raw, progress)
-        quads = parse(reader, rdf_format)
+        parser = parse(cast(IO[bytes], _CountingReader(raw, progress)), rdf_format)
         try:
-            while batch := list(islice(quads, BATCH_TRIPLES)):
+            while batch := list(islice(parser, BATCH_TRIPLES)):
                 read += len(batch)
                 new += store.insert_new(batch)
         except SyntaxError as error:

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from itertools import islice
 from typing import TypeVar
 
-from pyoxigraph import QueryBoolean, QueryResultsFormat, QuerySolutions, Triple, parse_query_results
+from pyoxigraph import QueryBoolean, QueryResultsFormat, QuerySolution, QuerySolutions, Triple, parse_query_results
 
 from segb_server.backend.store.base import QueryResult, QueryTimeout, Store, StoreError
 
@@ -74,7 +74,7 @@ def _check(deadline: float, seconds: float) -> None:
         raise QueryTimeout(seconds)
 
 
-def _solutions(source: QuerySolutions, rows: list) -> QuerySolutions:  # type: ignore[type-arg]
+def _solutions(source: QuerySolutions, rows: list[QuerySolution]) -> QuerySolutions:
     """The rows read as a QuerySolutions again, so pyoxigraph's own writers serialise them: pyoxigraph cannot
     build one from a list, but it parses SPARQL TSV, whose terms are exactly what `str(term)` writes."""
     names = [variable.value for variable in source.variables]

@@ -12,15 +12,14 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from datetime import datetime
 
-from pyoxigraph import Literal, NamedNode
+from pyoxigraph import Literal
 
-from segb_server.backend.services.catalog import Catalog
 from segb_server.backend.services.errors import InvalidParameter
-from segb_server.backend.services.kinds import KINDS, Kind, kind_of
-from segb_server.backend.services.namespaces import PREFIXES, compact
-from segb_server.backend.services.result_cache import DataVersion, ResultCache
-from segb_server.backend.services.term_values import iso_time, json_value
-from segb_server.backend.store.base import Store, select
+from segb_server.backend.services.ops.result_cache import DataVersion, ResultCache
+from segb_server.backend.services.sparql.catalog import Catalog
+from segb_server.backend.services.views.term_values import iso_time, json_value
+from segb_server.backend.store.base import Store, Term, select
+from segb_server.backend.vocabulary import KINDS, PREFIXES, Kind, compact, kind_of
 
 RDF_TYPE = PREFIXES["rdf"] + "type"
 # Display name predicates, best first.
@@ -128,7 +127,7 @@ class KnowledgeGraph:
             yield edge.source
 
     @classmethod
-    def from_triples(cls, triples: Iterable[tuple[str, str, NamedNode | Literal]]) -> KnowledgeGraph:
+    def from_triples(cls, triples: Iterable[tuple[str, str, Term]]) -> KnowledgeGraph:
         graph = cls()
         links: set[tuple[str, str, str]] = set()
         for subject, predicate, value in triples:
@@ -212,8 +211,7 @@ class GraphService:
         query = self.catalog.get("graph/elements")
         rows = select(self.store, query.text).rows
         return KnowledgeGraph.from_triples(
-            (row["subject"].value, row["predicate"].value, row["object"])
-            for row in rows  # type: ignore[misc]
+            (row["subject"].value, row["predicate"].value, row["object"]) for row in rows
         )
 
     def graph(self, request: GraphRequest) -> dict[str, object]:

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from segb_server.backend.services.catalog import Catalog
-from segb_server.backend.services.namespaces import PREFIXES, sparql_prologue
+from segb_server.backend.services.sparql.catalog import Catalog
+from segb_server.backend.vocabulary import PREFIXES, sparql_prologue
 
 STARTER = "SELECT ?subject ?predicate ?object\nWHERE { ?subject ?predicate ?object }\nLIMIT 100\n"
 EXAMPLE_FOLDERS = ("examples", "reports")

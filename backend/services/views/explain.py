@@ -15,8 +15,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from segb_server.backend.services.errors import NotFound
-from segb_server.backend.services.graph import GraphService, local_name
-from segb_server.backend.services.namespaces import PREFIXES
+from segb_server.backend.services.views.graph import GraphService, local_name
+from segb_server.backend.vocabulary import PREFIXES
 
 SEGB, PROV, SCHEMA, ORO = PREFIXES["segb"], PREFIXES["prov"], PREFIXES["schema"], PREFIXES["oro"]
 ONYX, OA, MLS, SOSA = PREFIXES["onyx"], PREFIXES["oa"], PREFIXES["mls"], PREFIXES["sosa"]
@@ -245,11 +245,6 @@ class _Reader:
 
 def _quote(text: object) -> str:
     return f"“{text}”"
-
-
-def _reading(emotion: dict[str, Any]) -> str:
-    on = f" on {', '.join(target['label'] for target in emotion['targets'])}" if emotion["targets"] else ""
-    return f"{emotion['category']} {emotion['intensity']}{on}"
 
 
 def sentence(step: Step) -> str:

@@ -9,11 +9,11 @@ from dataclasses import dataclass
 
 from pyoxigraph import Quad
 
-from segb_server.backend.services.group_commit import GroupCommit
-from segb_server.backend.services.ledger import Entry, Ledger
-from segb_server.backend.services.payloads import RdfPayload
-from segb_server.backend.services.rdf_parsing import parse_triples
-from segb_server.backend.services.result_cache import DataVersion
+from segb_server.backend.services.ingest.group_commit import GroupCommit
+from segb_server.backend.services.ingest.parsing import parse_triples
+from segb_server.backend.services.ingest.payloads import RdfPayload
+from segb_server.backend.services.ops.ledger import Entry, Ledger
+from segb_server.backend.services.ops.result_cache import DataVersion
 from segb_server.backend.store.base import Store
 
 logger = logging.getLogger("segb.ingest")

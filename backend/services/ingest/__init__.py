@@ -1,0 +1,1 @@
+"""Receiving robots' RDF: request bodies, parsing, skolemisation, writing, bulk imports."""

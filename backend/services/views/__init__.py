@@ -1,0 +1,1 @@
+"""What auditors read: reports, the drawable graph, explanations, exports."""
