@@ -78,6 +78,9 @@ class Settings(BaseSettings):
         description="URL the UI uses to reach the API; empty = http://127.0.0.1:<API_PORT>.",
     )
     cors_origins: str = Field("", description="Comma-separated origins allowed by CORS (empty = CORS off).")
+    cors_allow_credentials: bool = Field(
+        False, description="Let CORS requests from CORS_ORIGINS carry cookies and HTTP authentication."
+    )
 
     # --- auth --------------------------------------------------------------------------------------------
     secret_key: str = Field("", description="HS256 secret for JWTs; empty = authentication disabled.")

@@ -13,6 +13,7 @@ from fastapi.middleware.cors import CORSMiddleware
 from segb_server.backend import __version__
 from segb_server.backend.api.docs import install_docs
 from segb_server.backend.api.errors import document_error_shape, install_error_handlers
+from segb_server.backend.api.middleware import SecurityHeaders, UnexpectedErrors
 from segb_server.backend.api.request_context import RequestContext
 from segb_server.backend.api.routes import (
     auth,
@@ -102,15 +103,20 @@ def create_app(settings: Settings | None = None, store: Store | None = None) -> 
     install_docs(app)
     install_error_handlers(app)
     document_error_shape(app)
+    # Added innermost first: a 500 made by UnexpectedErrors still passes CORS (so a browser sees its status),
+    # the security headers and the request id.
+    app.add_middleware(UnexpectedErrors)
     if settings.cors_origin_list:
         app.add_middleware(
             CORSMiddleware,
             allow_origins=settings.cors_origin_list,
+            allow_credentials=settings.cors_allow_credentials,
             allow_methods=["GET", "POST"],
             allow_headers=["Authorization", "Content-Type", "Content-Encoding", "X-Request-ID"],
-            expose_headers=["X-Request-ID"],
+            expose_headers=["X-Request-ID", "X-SEGB-Truncated", "X-SEGB-Max-Rows", "Retry-After"],
         )
-    app.add_middleware(RequestContext)  # added last, so it is outermost: every answer carries the id
+    app.add_middleware(SecurityHeaders)
+    app.add_middleware(RequestContext)  # outermost: every answer carries the id
     for router in [*ROUTERS, reports.build_router(catalog)]:
         app.include_router(router)
     return app

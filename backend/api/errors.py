@@ -90,17 +90,11 @@ def _http_error(request: Request, error: StarletteHTTPException) -> JSONResponse
     )
 
 
-def _unexpected_error(request: Request, error: Exception) -> JSONResponse:
-    logger.exception("unhandled error on %s %s", request.method, request.url.path)
-    return JSONResponse(error_body(500, "Internal server error; see the server log.", "internal_error"), 500)
-
-
 def install_error_handlers(app: FastAPI) -> None:
     for kind, _ in STATUS_BY_ERROR:
         app.add_exception_handler(kind, _service_error)
     app.add_exception_handler(RequestValidationError, _validation_error)  # type: ignore[arg-type]
     app.add_exception_handler(StarletteHTTPException, _http_error)  # type: ignore[arg-type]
-    app.add_exception_handler(Exception, _unexpected_error)
 
 
 ERROR_SCHEMA = {

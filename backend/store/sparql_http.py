@@ -122,7 +122,11 @@ class SparqlHttpStore:
             content=sparql_update.encode("utf-8"),
             headers={"Content-Type": "application/sparql-update; charset=utf-8", "Accept": RESULTS_JSON},
         )
-        self._raise_for_status(response)
+        try:
+            self._raise_for_status(response)
+        except StoreRejectedQuery as refused:  # our own update: the caller's input is not at fault
+            logger.warning("%s refused an update: %s", self.kind, refused)
+            raise StoreError(f"{self.kind} refused to write the triples (the server log has its answer)") from None
         return response
 
     # --- reads ---------------------------------------------------------------------------------------
@@ -231,12 +235,19 @@ class SparqlHttpStore:
     def _raise_for_status(self, response: httpx.Response) -> None:
         if response.status_code < 400:
             return
-        text = response.text.strip()[:600]
+        text = self._summary(response.text)
         if response.status_code == 400:
             raise StoreRejectedQuery(text)
         if response.status_code in (401, 403):
             raise StoreError(f"{self.kind} refused the server's credentials (HTTP {response.status_code})")
         raise StoreError(f"{self.kind} answered HTTP {response.status_code}: {text}")
+
+    def _summary(self, text: str) -> str:
+        """What a store's error answer says, for people: its message without the query a store echoes after it
+        (Virtuoso's "SPARQL query:"), without the graph's name, one line, bounded."""
+        message = text.split("SPARQL query:", 1)[0]
+        message = " ".join(message.split())[:300]
+        return message.replace(self.graph_uri, "the events graph")
 
     def close(self) -> None:
         self._client.close()

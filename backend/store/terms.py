@@ -4,12 +4,20 @@ from __future__ import annotations
 
 import re
 
-from pyoxigraph import BlankNode
+from pyoxigraph import BlankNode, Triple
 
 from segb_server.backend.store.base import Bindings
 from segb_server.backend.store.sparql_text import top_level_where
 
 _VARIABLE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+def term_text(term: object) -> str:
+    """A term as N-Triples / SPARQL writes it; an RDF 1.2 triple term as `<<( s p o )>>`, which pyoxigraph's
+    own `str()` leaves out."""
+    if isinstance(term, Triple):
+        return f"<<( {term_text(term.subject)} {term.predicate} {term_text(term.object)} )>>"
+    return str(term)
 
 
 def bind_values(sparql: str, bindings: Bindings | None) -> str:

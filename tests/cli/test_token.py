@@ -22,7 +22,15 @@ def test_token_from_the_environment_is_accepted_by_the_api(memory_store) -> None
     token = made.stdout.strip()
     with LiveServer(create_app(make_settings(secret_key=SECRET), store=memory_store)) as server:
         answer = httpx.get(f"{server.url}/auth/whoami", headers={"Authorization": f"Bearer {token}"})
-    assert answer.json() == {"username": "ari", "roles": ["logger"], "authenticated": True, "auth_enabled": True}
+    identity = answer.json()
+    assert {key: identity[key] for key in ("username", "roles", "granted_roles", "scopes", "authenticated")} == {
+        "username": "ari",
+        "roles": ["logger"],
+        "granted_roles": ["logger"],
+        "scopes": [],
+        "authenticated": True,
+    }
+    assert identity["expires_at"] > 0
 
 
 def test_claims_roles_deduplicated_and_json_output(tmp_path: Path) -> None:

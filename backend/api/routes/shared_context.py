@@ -19,6 +19,7 @@ from segb_server.backend.services.clock import utc_iso
 from segb_server.backend.services.shared_context.policy import RESOLVER_VERSION, atom, epoch, scoring_text
 from segb_server.backend.services.shared_context.service import ContextRecord, Decision, Observation
 from segb_server.backend.services.shared_context.state import Case
+from segb_server.backend.services.text import UnicodeModel
 
 router = APIRouter(prefix="/shared-context", tags=["shared context"])
 
@@ -26,7 +27,7 @@ MAX_TEXT = 4096  # scoring compares texts pairwise; a bound keeps one resolve ch
 MAX_ATOM = 2048
 
 
-class ResolveRequest(BaseModel):
+class ResolveRequest(UnicodeModel):
     event_kind: str = Field(max_length=MAX_ATOM, examples=["human_utterance"])
     observed_at: datetime = Field(description="ISO 8601; a time without offset is taken as UTC.")
     subject_uri: str | None = Field(None, max_length=MAX_ATOM)
@@ -161,7 +162,7 @@ class DecisionOut(Versioned):
         return cls(**asdict(decision))
 
 
-class AcceptRequest(BaseModel):
+class AcceptRequest(UnicodeModel):
     target_context_uri: str = Field(min_length=1, max_length=MAX_ATOM)
 
 

@@ -16,6 +16,7 @@ from segb_server.backend.services.formats import GRAPHS, SOLUTIONS, Format, form
 from segb_server.backend.services.sparql.answers import formats_for, rows_as_turtle, run_and_write, write_in
 from segb_server.backend.services.sparql.guard import MAX_QUERY_BYTES, CheckedQuery, guard_query
 from segb_server.backend.services.sparql.limits import QueryLimits
+from segb_server.backend.services.text import UnicodeModel
 
 router = APIRouter(tags=["sparql"])
 
@@ -163,7 +164,7 @@ async def query_reference(
     return Response(body, media_type="text/turtle; charset=utf-8", headers=limit_headers(truncated, services))
 
 
-class ValidateRequest(BaseModel):
+class ValidateRequest(UnicodeModel):
     query: str = Field(description="The SPARQL query to check.")
 
 

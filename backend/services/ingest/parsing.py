@@ -4,10 +4,11 @@ from __future__ import annotations
 
 from itertools import islice
 
-from pyoxigraph import Quad, RdfFormat, parse
+from pyoxigraph import Quad, RdfFormat, Triple, parse
 
 from segb_server.backend.services.errors import InvalidRdf, PayloadTooLarge
 from segb_server.backend.services.ingest.skolem import might_contain_blank_nodes, skolemize
+from segb_server.backend.store.terms import term_text
 
 SYNTAX_NAMES = {RdfFormat.TURTLE: "Turtle", RdfFormat.N_TRIPLES: "N-Triples"}
 
@@ -23,11 +24,27 @@ def parse_triples(data: bytes, rdf_format: RdfFormat, *, max_triples: int, skole
         quads = list(islice(parse(data, rdf_format), max_triples + 1))
     except SyntaxError as error:
         raise invalid_rdf(error, rdf_format) from None
+    except MemoryError as error:  # pyoxigraph's parser holds one token (a literal, an IRI) in a bounded buffer
+        raise PayloadTooLarge(f"A single literal or IRI is too long for the RDF parser ({error}).") from None
     if len(quads) > max_triples:
         raise PayloadTooLarge(f"The payload has more than {max_triples} triples (MAX_TRIPLES_PER_POST).")
+    refuse_triple_terms(quads, rdf_format)
     if might_contain_blank_nodes(data):
         quads = skolemize(quads, skolem_base)
     return quads
+
+
+def refuse_triple_terms(quads: list[Quad], rdf_format: RdfFormat) -> None:
+    """RDF 1.2 triple terms (`<<( s p o )>>`) are refused on every store: Virtuoso cannot hold them and JSON-LD
+    cannot export them, so accepting them on one store would make the others disagree."""
+    for index, quad in enumerate(quads, start=1):
+        if isinstance(quad.subject, Triple) or isinstance(quad.object, Triple):
+            syntax = SYNTAX_NAMES.get(rdf_format, rdf_format.name)
+            raise InvalidRdf(
+                f"triple {index} holds an RDF 1.2 triple term ({term_text(quad.object)}); triple terms are not "
+                "accepted by this server",
+                syntax=syntax,
+            )
 
 
 def invalid_rdf(error: SyntaxError, rdf_format: RdfFormat) -> InvalidRdf:

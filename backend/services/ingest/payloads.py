@@ -6,10 +6,11 @@ import json
 import zlib
 from dataclasses import dataclass
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import ConfigDict, Field, ValidationError
 from pyoxigraph import RdfFormat
 
 from segb_server.backend.services.errors import EmptyPayload, InvalidPayload, PayloadTooLarge, UnsupportedMediaType
+from segb_server.backend.services.text import UnicodeModel, surrogate_at
 
 RAW_RDF_TYPES = {
     "text/turtle": RdfFormat.TURTLE,
@@ -17,9 +18,10 @@ RAW_RDF_TYPES = {
     "application/n-triples": RdfFormat.N_TRIPLES,
 }
 ACCEPTED_TYPES = "application/json, text/turtle or application/n-triples"
+MAX_USER_LENGTH = 256
 
 
-class IngestRequest(BaseModel):
+class IngestRequest(UnicodeModel):
     """The JSON body `SEGBPublisher.publish_turtle` posts."""
 
     model_config = ConfigDict(
@@ -38,7 +40,7 @@ class IngestRequest(BaseModel):
     user: str | None = Field(None, description="Name the client claims; kept as 'claimed user'.")
 
 
-class DeleteAllRequest(BaseModel):
+class DeleteAllRequest(UnicodeModel):
     """The JSON body `SEGBPublisher.delete_all_ttls` posts."""
 
     user: str | None = Field(None, description="Name the client claims.")
@@ -70,6 +72,7 @@ def decode_ingest_body(
     if kind != "application/json" and kind not in RAW_RDF_TYPES:
         shown = kind or "no Content-Type"
         raise UnsupportedMediaType(f"Unsupported Content-Type '{shown}'; send {ACCEPTED_TYPES}.")
+    check_text("user", claimed_user)
     body = decompress(body, content_encoding, max_decompressed_bytes)
     if kind == "application/json":
         request = _parse_json_body(body)
@@ -106,13 +109,42 @@ def decompress(body: bytes, content_encoding: str | None, limit: int) -> bytes:
 
 def _parse_json_body(body: bytes) -> IngestRequest:
     try:
-        document = json.loads(body)
+        document = json.loads(body, object_pairs_hook=_without_duplicate_keys)
     except (UnicodeDecodeError, json.JSONDecodeError) as error:
         raise InvalidPayload(f"The body is not valid JSON: {error}.") from None
+    except RecursionError:
+        raise InvalidPayload("The JSON body nests arrays or objects too deeply; send a flat ingest request.") from None
     try:
-        return IngestRequest.model_validate(document)
+        request = IngestRequest.model_validate(document)
     except ValidationError as error:
         problems = "; ".join(
             f"{'.'.join(str(part) for part in issue['loc']) or 'body'}: {issue['msg']}" for issue in error.errors()
         )
         raise InvalidPayload(f"The JSON body is not an ingest request ({problems}).") from None
+    for field in ("ttl_content", "user"):
+        check_text(field, getattr(request, field))
+    return request
+
+
+def check_text(field: str, value: str | None) -> None:
+    """Text that will be stored, hashed and logged must be real Unicode (services/text.py says why). Refused
+    naming the field, before anything is written."""
+    if value is None:
+        return
+    position = surrogate_at(value)
+    if position is not None:
+        raise InvalidPayload(
+            f"'{field}' holds an unpaired surrogate ({value[position]!a}) at character {position}: "
+            "not valid Unicode text."
+        )
+    if field == "user" and len(value) > MAX_USER_LENGTH:
+        raise InvalidPayload(f"'user' is {len(value)} characters long; the most is {MAX_USER_LENGTH}.")
+
+
+def _without_duplicate_keys(pairs: list[tuple[str, object]]) -> dict[str, object]:
+    document: dict[str, object] = {}
+    for key, value in pairs:
+        if key in document:
+            raise InvalidPayload(f"The JSON body gives '{key}' more than once; give each field once.")
+        document[key] = value
+    return document

@@ -11,6 +11,7 @@ from typing import TypeVar
 from pyoxigraph import QueryBoolean, QueryResultsFormat, QuerySolution, QuerySolutions, Triple, parse_query_results
 
 from segb_server.backend.store.base import QueryResult, QueryTimeout, Store, StoreError
+from segb_server.backend.store.terms import term_text
 
 Item = TypeVar("Item")
 
@@ -76,8 +77,8 @@ def _check(deadline: float, seconds: float) -> None:
 
 def _solutions(source: QuerySolutions, rows: list[QuerySolution]) -> QuerySolutions:
     """The rows read as a QuerySolutions again, so pyoxigraph's own writers serialise them: pyoxigraph cannot
-    build one from a list, but it parses SPARQL TSV, whose terms are exactly what `str(term)` writes."""
+    build one from a list, but it parses SPARQL TSV, whose terms are what `term_text` writes."""
     names = [variable.value for variable in source.variables]
     lines = ["\t".join(f"?{name}" for name in names)]
-    lines.extend("\t".join("" if term is None else str(term) for term in row) for row in rows)
+    lines.extend("\t".join("" if term is None else term_text(term) for term in row) for row in rows)
     return parse_query_results(("\n".join(lines) + "\n").encode("utf-8"), QueryResultsFormat.TSV)  # type: ignore[return-value]

@@ -2,39 +2,52 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+import logging
+from collections.abc import Iterable, Iterator
 
-from pyoxigraph import NamedNode, Quad, RdfFormat
+from pyoxigraph import NamedNode, Quad, RdfFormat, Triple
 
 from segb_server.backend.services.formats import Format, rdf_bytes
 from segb_server.backend.store.base import Store
 from segb_server.backend.vocabulary import PREFIXES
 
 BATCH_TRIPLES = 10_000
+logger = logging.getLogger("segb.export")
 
 
 def stream_graph(store: Store, fmt: Format) -> Iterator[bytes]:
-    """The events graph in `fmt`. N-Quads name the events graph; Turtle declares the prefixes once."""
+    """The events graph as the store holds it, in `fmt`."""
+    batches = ([quad.triple for quad in batch] for batch in store.batches(BATCH_TRIPLES))
+    return write_graph(batches, fmt, NamedNode(store.graph_uri))
+
+
+def write_graph(batches: Iterable[list[Triple]], fmt: Format, graph: NamedNode) -> Iterator[bytes]:
+    """Batches of triples written as one document in `fmt`: N-Quads name `graph`, Turtle declares the prefixes
+    once, JSON-LD is one array. JSON-LD 1.1 cannot carry RDF 1.2 triple terms: triples holding one are left
+    out of a JSON-LD export (and logged), so the document stays whole."""
     assert fmt.rdf is not None, "an export format writes RDF"
-    graph = NamedNode(store.graph_uri)
     header = "".join(f"@prefix {name}: <{iri}> .\n" for name, iri in sorted(PREFIXES.items())).encode()
     if fmt.rdf == RdfFormat.TURTLE:
         yield header
     elif fmt.rdf == RdfFormat.JSON_LD:
         yield b"["
-    first = True
-    for batch in store.batches(BATCH_TRIPLES):
+    first, left_out = True, 0
+    for triples in batches:
         if fmt.rdf == RdfFormat.N_QUADS:
-            yield rdf_bytes([Quad(q.subject, q.predicate, q.object, graph) for q in batch], fmt.rdf)
+            yield rdf_bytes([Quad(t.subject, t.predicate, t.object, graph) for t in triples], fmt.rdf)
         elif fmt.rdf == RdfFormat.TURTLE:
-            text = rdf_bytes([q.triple for q in batch], fmt.rdf, PREFIXES)
+            text = rdf_bytes(triples, fmt.rdf, PREFIXES)
             yield text[len(header) :] if text.startswith(header) else text
         elif fmt.rdf == RdfFormat.JSON_LD:
-            nodes = rdf_bytes([q.triple for q in batch], fmt.rdf).strip()[1:-1]
+            plain = [t for t in triples if not isinstance(t.subject, Triple) and not isinstance(t.object, Triple)]
+            left_out += len(triples) - len(plain)
+            nodes = rdf_bytes(plain, fmt.rdf).strip()[1:-1] if plain else b""
             if nodes:
                 yield (b"" if first else b",") + nodes
                 first = False
         else:
-            yield rdf_bytes([q.triple for q in batch], fmt.rdf)
+            yield rdf_bytes(triples, fmt.rdf)
     if fmt.rdf == RdfFormat.JSON_LD:
         yield b"]"
+    if left_out:
+        logger.warning("JSON-LD export left out %d triples holding RDF 1.2 triple terms", left_out)

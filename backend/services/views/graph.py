@@ -12,7 +12,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from datetime import datetime
 
-from pyoxigraph import Literal
+from pyoxigraph import Literal, NamedNode
 
 from segb_server.backend.services.errors import InvalidParameter
 from segb_server.backend.services.ops.result_cache import DataVersion, ResultCache
@@ -264,8 +264,10 @@ class GraphService:
                 statement["datatype"] = compact(value.datatype.value)
                 if value.language:
                     statement["language"] = value.language
+            elif "valueLabel" in row:
+                statement["label"] = row["valueLabel"].value
             else:
-                statement["label"] = row["valueLabel"].value if "valueLabel" in row else local_name(value.value)
+                statement["label"] = local_name(value.value) if isinstance(value, NamedNode) else str(json_value(value))
             statements.append(statement)
         return statements
 

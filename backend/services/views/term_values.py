@@ -9,7 +9,9 @@ from __future__ import annotations
 
 from datetime import UTC, datetime
 
-from pyoxigraph import BlankNode, Literal, NamedNode
+from pyoxigraph import BlankNode, Literal, NamedNode, Triple
+
+from segb_server.backend.store.terms import term_text
 
 XSD = "http://www.w3.org/2001/XMLSchema#"
 _INTEGERS = {
@@ -24,13 +26,15 @@ _DECIMALS = {XSD + "decimal", XSD + "double"}
 JsonValue = str | int | float | bool | None
 
 
-def json_value(term: NamedNode | BlankNode | Literal | None) -> JsonValue:
+def json_value(term: NamedNode | BlankNode | Literal | Triple | None) -> JsonValue:
     if term is None:
         return None
     if isinstance(term, NamedNode):
         return term.value
     if isinstance(term, BlankNode):
         return f"_:{term.value}"
+    if isinstance(term, Triple):  # an RDF 1.2 triple term someone else wrote: shown as its N-Triples text
+        return term_text(term)
     datatype = term.datatype.value
     text = term.value
     try:

@@ -1,0 +1,60 @@
+"""Whatever the store holds, every read path answers: an RDF 1.2 triple term written by someone else (an old
+server, another writer of a shared store) must not break exports, queries, resources or explanations. New
+posts with triple terms are refused, on every store."""
+
+from __future__ import annotations
+
+import httpx
+import pytest
+from pyoxigraph import NamedNode, Quad, Triple
+
+from segb_server.backend.api.app import create_app
+from segb_server.backend.store.oxigraph import OxigraphStore
+from tests.conftest import make_settings
+from tests.support.live_server import LiveServer
+
+EX = "https://e.org/"
+SAYS = f"<{EX}a> <{EX}says> <<( <{EX}s> <{EX}p> <{EX}o> )>> ."
+
+
+def test_a_post_with_a_triple_term_is_refused_and_writes_nothing(api: LiveServer) -> None:
+    refused = httpx.post(f"{api.url}/ttl", content=SAYS, headers={"Content-Type": "text/turtle"})
+    assert refused.status_code == 400
+    assert "triple terms" in refused.json()["detail"]
+    assert "INSERT" not in refused.text and "amor-segb" not in refused.text  # nothing internal leaks
+    count = httpx.get(f"{api.url}/sparql", params={"query": "SELECT (COUNT(*) AS ?n) { ?s ?p ?o }"}).json()
+    assert count["results"]["bindings"][0]["n"]["value"] == "0"
+
+
+@pytest.fixture
+def poisoned() -> LiveServer:
+    store = OxigraphStore("http://amor-segb/events")
+    term = Triple(NamedNode(EX + "s"), NamedNode(EX + "p"), NamedNode(EX + "o"))
+    store.insert_new([Quad(NamedNode(EX + "a"), NamedNode(EX + "says"), term)])
+    with LiveServer(create_app(make_settings(), store=store)) as server:
+        yield server
+    store.close()
+
+
+@pytest.mark.parametrize("fmt", ["turtle", "ntriples", "nquads", "jsonld"])
+def test_every_export_format_answers_whole(poisoned: LiveServer, fmt: str) -> None:
+    answer = httpx.get(f"{poisoned.url}/events", params={"format": fmt})
+    assert answer.status_code == 200
+    if fmt == "jsonld":  # JSON-LD 1.1 cannot carry a triple term: the document stays valid JSON without it
+        assert answer.json() == []
+    else:
+        assert f"<{EX}s>" in answer.text
+
+
+@pytest.mark.parametrize("path", ["/sparql", "/query"])
+def test_queries_over_a_triple_term_answer(poisoned: LiveServer, path: str) -> None:
+    answer = httpx.get(f"{poisoned.url}{path}", params={"query": "SELECT * { ?s ?p ?o }"})
+    assert answer.status_code == 200, answer.text
+    assert f"{EX}s" in answer.text
+
+
+@pytest.mark.parametrize("path", ["/resource", "/explain"])
+def test_the_resource_and_its_explanation_answer(poisoned: LiveServer, path: str) -> None:
+    answer = httpx.get(f"{poisoned.url}{path}", params={"iri": EX + "a"})
+    assert answer.status_code in (200, 404), answer.text
+    assert answer.headers["content-type"] == "application/json"
