@@ -13,7 +13,7 @@ import signal
 import sys
 from collections.abc import Iterator, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import uvicorn
 from pydantic import ValidationError
@@ -22,6 +22,11 @@ from tqdm import tqdm
 from segb_server.backend.config import Settings
 from segb_server.backend.services.errors import ServiceError
 from segb_server.backend.store.base import Store, StoreError
+
+if TYPE_CHECKING:  # the services are imported by the commands that need them, not whenever the CLI starts
+    from segb_server.backend.services.container import Services
+
+IMPORT_USER = "segb-import"  # the receipts of `segb import` name this user
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -54,6 +59,12 @@ def _parser() -> argparse.ArgumentParser:
     serve.add_argument("--only", choices=["api", "ui"], help="run just one of the two servers (default: both)")
     serve.add_argument("--demo", action="store_true", help="load the demo dataset at start-up if the store is empty")
     serve.set_defaults(handler=_serve)
+
+    rebuild = commands.add_parser(
+        "rebuild", help="rebuild the store from the journal (recovery, or moving to another store with --store)"
+    )
+    _store_options(rebuild)
+    rebuild.set_defaults(handler=_rebuild)
 
     load = commands.add_parser("import", help="load Turtle (.ttl) or N-Triples (.nt) files into the store")
     _store_options(load)
@@ -201,23 +212,49 @@ async def _serve_together(servers: list[uvicorn.Server]) -> None:
 
 
 def _import(args: argparse.Namespace) -> int:
-    from segb_server.backend.services.ingest.bulk import import_file
-    from segb_server.backend.store.factory import open_store
-
     settings = _settings(args)
     missing = [str(path) for path in args.files if not path.is_file()]
     if missing:
         return _fail(f"no such file: {', '.join(missing)}")
-    store = open_store(settings)
-    try:
+    with _services(settings) as services:
         total = sum(path.stat().st_size for path in args.files)
         with tqdm(total=total, unit="B", unit_scale=True, desc="import", file=sys.stderr) as bar:
             for path in args.files:
-                result = import_file(store, path, skolem_base=settings.effective_skolem_base, progress=bar.update)
+                result = services.ingest.import_file(path, actor=IMPORT_USER, progress=bar.update)
                 bar.write(f"{path}: {result.triples_read} triples read, {result.triples_new} new")
+    return 0
+
+
+def _rebuild(args: argparse.Namespace) -> int:
+    settings = _settings(args)
+    with _services(settings) as services:
+        journal, store = services.journal, services.store
+        start = journal.last_clearing()
+        removed = store.clear(through=start)
+        print(
+            f"cleared the {store.kind} store ({removed} triples); applying journal entries {start + 1}…",
+            file=sys.stderr,
+        )
+        applied = services.applier.apply_pending()
+        print(f"{store.kind} store rebuilt from the journal through entry {applied}: {store.count()} triples")
+    return 0
+
+
+@contextlib.contextmanager
+def _services(settings: Settings) -> Iterator[Services]:
+    """The store and services of a command that runs without the server (the store must not be in use)."""
+    from segb_server.backend.services.container import build_services
+    from segb_server.backend.store.factory import open_store
+
+    store = open_store(settings)
+    try:
+        services = build_services(settings, store)
+        try:
+            yield services
+        finally:
+            services.close()
     finally:
         store.close()
-    return 0
 
 
 def _export(args: argparse.Namespace) -> int:

@@ -51,6 +51,25 @@ class Settings(BaseSettings):
     store_check_seconds: float = Field(
         15.0, gt=0, description="Interval of the background check once the store answers (logs lost/back)."
     )
+    ingest_ack: Literal["auto", "journal", "store"] = Field(
+        "auto",
+        description="When a post is answered: once durable in the journal (journal), or once the store applied "
+        "it too (store); auto = store on the embedded store, journal on remote stores.",
+    )
+    ingest_apply_timeout_seconds: float = Field(
+        10.0, gt=0, description="With INGEST_ACK=store, how long a post waits for the store before a 503."
+    )
+    journal_max_backlog: int = Field(
+        100_000, ge=0, description="Entries the store may fall behind the journal before posts get 503 (0 = no limit)."
+    )
+    journal_max_bytes: int = Field(0, ge=0, description="Largest size of the journal file in bytes (0 = no limit).")
+    journal_sync: Literal["normal", "full"] = Field(
+        "normal",
+        description="normal: a journal commit survives a crash of the server; full: also a power cut (slower).",
+    )
+    apply_batch_triples: int = Field(
+        20_000, gt=0, description="Most triples the applier writes to the store in one step."
+    )
     skolem_base: str = Field(
         "",
         description="IRI prefix for skolemised blank nodes; empty = <graph authority>/.well-known/genid/.",
@@ -140,6 +159,12 @@ class Settings(BaseSettings):
                 "(set ALLOW_WEAK_SECRET=true to accept a weaker one)"
             )
         return self
+
+    @property
+    def effective_ingest_ack(self) -> Literal["journal", "store"]:
+        if self.ingest_ack != "auto":
+            return self.ingest_ack
+        return "store" if self.store in ("oxigraph", "memory") else "journal"
 
     @property
     def auth_enabled(self) -> bool:

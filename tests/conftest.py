@@ -64,7 +64,9 @@ _DATA_ROOT = Path(tempfile.mkdtemp(prefix="segb-test-data-"))
 
 def make_settings(**overrides: object) -> Settings:
     """Settings that ignore the developer's environment and `.env`, with a data directory of their own."""
-    values: dict[str, object] = {"secret_key": "", "store": "memory", "cors_origins": ""}
+    # ingest_ack "store": a test's post is in the store when it is answered, whatever the store (tests of the
+    # journal's acknowledgement set it themselves).
+    values: dict[str, object] = {"secret_key": "", "store": "memory", "cors_origins": "", "ingest_ack": "store"}
     values.update(overrides)
     values.setdefault("data_dir", Path(tempfile.mkdtemp(dir=_DATA_ROOT)))
     return Settings(_env_file=None, **values)  # type: ignore[call-arg]

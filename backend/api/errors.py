@@ -12,6 +12,8 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from segb_server.backend.auth import AuthenticationFailed, PermissionDenied
 from segb_server.backend.services import errors as service_errors
 from segb_server.backend.services.formats import NotAcceptable
+from segb_server.backend.services.ingest.journal import StorageFull
+from segb_server.backend.services.ingest.service import JournalBacklogFull
 from segb_server.backend.store.base import QueryTimeout, StoreError, StoreRejectedQuery, StoreUnavailable
 
 logger = logging.getLogger("segb.api")
@@ -24,6 +26,8 @@ class ReferenceQueryRefused(service_errors.ServiceError):
     code = "invalid_query"
 
 
+RETRY_AFTER_SECONDS = 5
+
 STATUS_BY_ERROR: list[tuple[type[Exception], int]] = [
     (service_errors.InvalidRdf, 400),
     (service_errors.InvalidQuery, 400),
@@ -34,6 +38,8 @@ STATUS_BY_ERROR: list[tuple[type[Exception], int]] = [
     (NotAcceptable, 406),
     (service_errors.Conflict, 409),
     (service_errors.PayloadTooLarge, 413),
+    (StorageFull, 507),
+    (JournalBacklogFull, 503),
     (service_errors.UnsupportedMediaType, 415),
     (service_errors.EmptyPayload, 422),
     (service_errors.InvalidPayload, 422),
@@ -51,7 +57,9 @@ def error_body(status: int, detail: object, code: str, **extra: object) -> dict[
 
 def _service_error(request: Request, error: Exception) -> JSONResponse:
     status = next(code for kind, code in STATUS_BY_ERROR if isinstance(error, kind))
-    headers = {"WWW-Authenticate": "Bearer"} if status == 401 else None
+    headers = {"WWW-Authenticate": "Bearer"} if status == 401 else {}
+    if status in (503, 507):  # a condition that passes: say when to try again
+        headers["Retry-After"] = str(getattr(error, "details", {}).get("retry_after", RETRY_AFTER_SECONDS))
     if isinstance(error, service_errors.ServiceError):
         body = error_body(status, error.message, error.code, **error.details)
     elif isinstance(error, StoreUnavailable):

@@ -13,6 +13,12 @@ Bindings = Mapping[str, Term | None]
 QueryResult = QuerySolutions | QueryBoolean | Iterator[Triple]
 
 
+# How far the journal has been applied: one triple `CURSOR_SUBJECT CURSOR_PREDICATE <sequence>` that every
+# adapter keeps beside the events graph, written with the triples (see Store.apply).
+CURSOR_SUBJECT = NamedNode("urn:segb:journal")
+CURSOR_PREDICATE = NamedNode("urn:segb:appliedThrough")
+
+
 class StoreError(Exception):
     """A store failed in a way the caller cannot fix by changing its input."""
 
@@ -53,11 +59,17 @@ class Store(Protocol):
     def ping(self) -> None:
         """Raise StoreUnavailable unless the store answers a trivial query."""
 
-    def insert_new(self, quads: Sequence[Quad]) -> int:
-        """Add the quads (any graph name is ignored) to the events graph; return how many were new."""
+    def apply(self, quads: Sequence[Quad], through: int) -> None:
+        """Add the quads (any graph name is ignored) to the events graph, idempotently, and record that the
+        journal is applied through entry `through` (in the same transaction where the store has them)."""
 
-    def clear(self) -> int:
-        """Remove every triple of the events graph; return how many there were."""
+    def clear(self, through: int | None = None) -> int:
+        """Remove every triple of the events graph (recording `through` as applied, when given); return how
+        many there were."""
+
+    def applied_through(self) -> int | None:
+        """The journal entry this store is applied through, or None when it holds no record of it (a store
+        from before the journal, or a new or wiped one)."""
 
     def count(self) -> int:
         """Number of triples in the events graph."""

@@ -7,13 +7,23 @@ from collections.abc import Iterator, Sequence
 from itertools import islice
 from pathlib import Path
 
-from pyoxigraph import DefaultGraph, Quad, QuerySolutions
+from pyoxigraph import DefaultGraph, Literal, NamedNode, Quad, QuerySolutions
 from pyoxigraph import Store as OxStore
 
-from segb_server.backend.store.base import Bindings, QueryResult, StoreRejectedQuery, StoreUnavailable
+from segb_server.backend.store.base import (
+    CURSOR_PREDICATE,
+    CURSOR_SUBJECT,
+    Bindings,
+    QueryResult,
+    StoreRejectedQuery,
+    StoreUnavailable,
+)
 from segb_server.backend.store.terms import bind_values
 
 _COUNT = "SELECT (COUNT(*) AS ?n) WHERE { ?s ?p ?o }"
+# The cursor's graph here; queries see only the default graph.
+CURSOR_GRAPH = NamedNode("urn:segb:applied")
+XSD_INTEGER = NamedNode("http://www.w3.org/2001/XMLSchema#integer")
 
 
 class OxigraphStore:
@@ -28,10 +38,14 @@ class OxigraphStore:
             try:
                 self._store = OxStore(str(path))
             except OSError as error:
+                if "LOCK" in str(error):
+                    raise StoreUnavailable(
+                        f"another SEGB server is using the embedded store at {path}: stop it, or read its data "
+                        "through that server (GET /events)"
+                    ) from None
                 raise StoreUnavailable(f"cannot open the embedded store at {path}: {error}") from error
         else:
             self._store = OxStore()
-        # Counting new triples exactly needs the check and the write to be one step per post.
         self._write_lock = threading.Lock()
 
     def ping(self) -> None:
@@ -40,19 +54,32 @@ class OxigraphStore:
         except OSError as error:
             raise StoreUnavailable(str(error)) from error
 
-    def insert_new(self, quads: Sequence[Quad]) -> int:
+    def apply(self, quads: Sequence[Quad], through: int) -> None:
+        # One `extend` is one transaction: the triples and the new cursor are committed together.
         with self._write_lock:
-            store = self._store
-            new = list(dict.fromkeys(quad for quad in quads if quad not in store))
-            if new:
-                store.extend(new)
-        return len(new)
+            old = self._cursor_quads()
+            self._store.extend([*quads, _cursor(through)])
+            for quad in old:
+                if quad.object != _cursor(through).object:
+                    self._store.remove(quad)
 
-    def clear(self) -> int:
+    def clear(self, through: int | None = None) -> int:
         with self._write_lock:
             removed = self.count()
             self._store.clear_graph(DefaultGraph())
+            if through is not None:
+                old = self._cursor_quads()
+                self._store.add(_cursor(through))
+                for quad in old:
+                    self._store.remove(quad)
         return removed
+
+    def applied_through(self) -> int | None:
+        cursors = [int(quad.object.value) for quad in self._cursor_quads() if isinstance(quad.object, Literal)]
+        return max(cursors) if cursors else None
+
+    def _cursor_quads(self) -> list[Quad]:
+        return list(self._store.quads_for_pattern(CURSOR_SUBJECT, CURSOR_PREDICATE, None, CURSOR_GRAPH))
 
     def count(self) -> int:
         solutions = self._store.query(_COUNT)
@@ -77,3 +104,7 @@ class OxigraphStore:
     def close(self) -> None:
         self._store.flush()
         del self._store
+
+
+def _cursor(through: int) -> Quad:
+    return Quad(CURSOR_SUBJECT, CURSOR_PREDICATE, Literal(str(through), datatype=XSD_INTEGER), CURSOR_GRAPH)

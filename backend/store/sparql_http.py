@@ -12,6 +12,8 @@ import httpx
 from pyoxigraph import QueryResultsFormat, QuerySolutions, RdfFormat, parse, parse_query_results
 
 from segb_server.backend.store.base import (
+    CURSOR_PREDICATE,
+    CURSOR_SUBJECT,
     Bindings,
     Quad,
     QueryResult,
@@ -20,9 +22,8 @@ from segb_server.backend.store.base import (
     StoreRejectedQuery,
     StoreUnavailable,
 )
-from segb_server.backend.store.known_triples import KnownTriples, triple_key
 from segb_server.backend.store.query_form import query_form
-from segb_server.backend.store.terms import bind_values
+from segb_server.backend.store.terms import bind_values, term_text
 
 logger = logging.getLogger("segb.store")
 
@@ -48,15 +49,12 @@ class SparqlHttpStore:
         auth: httpx.Auth | None = None,
         timeout_seconds: float = 30.0,
         ping_timeout_seconds: float = 1.0,
-        known_capacity: int = 1_000_000,
     ) -> None:
         self.graph_uri = graph_uri
         self.query_endpoint = query_endpoint
         self.update_endpoint = update_endpoint
         self._ping_timeout = ping_timeout_seconds
         self._client = httpx.Client(auth=auth, timeout=timeout_seconds)
-        self._known = KnownTriples(known_capacity)
-        self._was_down = False
 
     # --- health --------------------------------------------------------------------------------------
 
@@ -69,52 +67,51 @@ class SparqlHttpStore:
                 timeout=self._ping_timeout,
             )
         except httpx.HTTPError as error:
-            self._mark_down()
             raise StoreUnavailable(f"{self.kind} does not answer: {error}") from error
         if response.status_code != 200:
-            self._mark_down()
             raise StoreUnavailable(f"{self.kind} answered HTTP {response.status_code} to a ping")
-        if self._was_down:
-            # The store may have been restored or wiped while away: stop trusting what we knew of it.
-            self._known.forget()
-            self._was_down = False
-
-    def _mark_down(self) -> None:
-        self._was_down = True
 
     # --- writes --------------------------------------------------------------------------------------
 
-    def insert_new(self, quads: Sequence[Quad]) -> int:
-        candidates: dict[int, str] = {}
-        known = self._known
-        for quad in quads:
-            line = f"{quad.subject} {quad.predicate} {quad.object}"
-            key = triple_key(line)
-            if key not in known:
-                candidates[key] = line
-        new = 0
-        pending = iter(candidates.items())
-        while batch := list(islice(pending, WRITE_BATCH_TRIPLES)):
-            new += self._insert_missing([line for _, line in batch])
-            known.remember(key for key, _ in batch)
-        return new
+    def apply(self, quads: Sequence[Quad], through: int) -> None:
+        # INSERT DATA of a triple the graph holds changes nothing, so re-applying after a crash is harmless;
+        # the cursor is written after the triples, so a crash in between only makes them applied twice.
+        graph = f"<{self.graph_uri}>"
+        for start in range(0, len(quads), WRITE_BATCH_TRIPLES):
+            body = "".join(
+                f"{term_text(q.subject)} {q.predicate} {term_text(q.object)} .\n"
+                for q in quads[start : start + WRITE_BATCH_TRIPLES]
+            )
+            self._update(f"INSERT DATA {{ GRAPH {graph} {{\n{body}}} }}")
+        self._record(through)
 
-    def _insert_missing(self, lines: list[str]) -> int:
-        """Insert the triples that are not yet in the graph; return how many that was."""
-        rows = "".join(f"({line})\n" for line in lines)
-        present = self._select_count(
-            f"SELECT (COUNT(*) AS ?n) WHERE {{ VALUES (?s ?p ?o) {{\n{rows}}}\n"
-            f"  GRAPH <{self.graph_uri}> {{ ?s ?p ?o }} }}"
-        )
-        body = "".join(f"{line} .\n" for line in lines)
-        self._update(f"INSERT DATA {{ GRAPH <{self.graph_uri}> {{\n{body}}} }}")
-        return len(lines) - present
-
-    def clear(self) -> int:
+    def clear(self, through: int | None = None) -> int:
         removed = self.count()
         self._update(f"CLEAR SILENT GRAPH <{self.graph_uri}>")
-        self._known.forget()
+        if through is not None:
+            self._record(through)
         return removed
+
+    def applied_through(self) -> int | None:
+        solutions = self._query_raw(
+            f"SELECT ?n WHERE {{ GRAPH <{self.cursor_graph}> {{ {CURSOR_SUBJECT} {CURSOR_PREDICATE} ?n }} }}",
+            dataset=False,
+        )
+        assert isinstance(solutions, QuerySolutions)
+        cursors = [int(row["n"].value) for row in solutions]
+        return max(cursors) if cursors else None
+
+    @property
+    def cursor_graph(self) -> str:
+        """Where the cursor lives: a graph of its own beside the events graph (queries never see it)."""
+        return f"urn:segb:applied:{self.graph_uri}"
+
+    def _record(self, through: int) -> None:
+        graph = f"<{self.cursor_graph}>"
+        self._update(
+            f"DELETE WHERE {{ GRAPH {graph} {{ ?s ?p ?o }} }} ;\n"
+            f"INSERT DATA {{ GRAPH {graph} {{ {CURSOR_SUBJECT} {CURSOR_PREDICATE} {through} }} }}"
+        )
 
     def _update(self, sparql_update: str) -> httpx.Response:
         response = self._send(
@@ -176,12 +173,10 @@ class SparqlHttpStore:
         try:
             response = self._client.send(request, stream=True)
         except httpx.ConnectTimeout as error:
-            self._mark_down()
             raise StoreUnavailable(f"{self.kind} does not answer: {error}") from error
         except httpx.TimeoutException as error:
             raise QueryTimeout(timeout) from error
         except httpx.HTTPError as error:
-            self._mark_down()
             raise StoreUnavailable(f"{self.kind} does not answer: {error}") from error
         if response.status_code >= 400 or self._timed_out(response):
             response.read()
@@ -229,7 +224,6 @@ class SparqlHttpStore:
         try:
             return self._client.post(url, **kwargs)  # type: ignore[arg-type]
         except httpx.HTTPError as error:
-            self._mark_down()
             raise StoreUnavailable(f"{self.kind} does not answer: {error}") from error
 
     def _raise_for_status(self, response: httpx.Response) -> None:

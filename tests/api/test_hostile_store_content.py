@@ -30,7 +30,7 @@ def test_a_post_with_a_triple_term_is_refused_and_writes_nothing(api: LiveServer
 def poisoned() -> LiveServer:
     store = OxigraphStore("http://amor-segb/events")
     term = Triple(NamedNode(EX + "s"), NamedNode(EX + "p"), NamedNode(EX + "o"))
-    store.insert_new([Quad(NamedNode(EX + "a"), NamedNode(EX + "says"), term)])
+    store.apply([Quad(NamedNode(EX + "a"), NamedNode(EX + "says"), term)], 0)  # written by someone else
     with LiveServer(create_app(make_settings(), store=store)) as server:
         yield server
     store.close()

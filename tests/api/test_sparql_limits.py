@@ -25,7 +25,7 @@ CROSS_JOIN = "SELECT * WHERE { ?a ?p ?b . ?c ?q ?d }"  # rows = triples², produ
 
 def fill(store: Store, triples: int) -> None:
     predicate = NamedNode(EX + "value")
-    store.insert_new([Quad(NamedNode(f"{EX}thing/{n:05d}"), predicate, Literal(str(n))) for n in range(triples)])
+    store.apply([Quad(NamedNode(f"{EX}thing/{n:05d}"), predicate, Literal(str(n))) for n in range(triples)], 0)
 
 
 def serve(store: Store, **limits: object) -> Iterator[LiveServer]:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from itertools import chain
+from typing import Literal
 
 from fastapi import APIRouter, Query, Request
 from fastapi.concurrency import run_in_threadpool
@@ -10,7 +11,7 @@ from fastapi.responses import StreamingResponse
 
 from segb_server.backend.api.deps import Auditor, ServicesDep
 from segb_server.backend.services.formats import EXPORTS, names, negotiate
-from segb_server.backend.services.views.export import stream_graph
+from segb_server.backend.services.views.export import stream_graph, stream_received
 
 router = APIRouter(tags=["export"])
 
@@ -21,7 +22,11 @@ router = APIRouter(tags=["export"])
     description=(
         "Streams every triple of the events graph. Turtle by default; `Accept: application/n-triples`, "
         "`application/n-quads` or `application/ld+json` (or `?format=ntriples|nquads|jsonld|turtle`) "
-        "choose another syntax. 406 when none of the accepted types can be produced."
+        "choose another syntax. 406 when none of the accepted types can be produced.\n\n"
+        "`form=store` (default) is the graph as the store holds it: stores canonicalise literals "
+        '(`"8.7e-01"^^xsd:double` becomes `"0.87"`, `xsd:long` becomes `xsd:integer`). `form=received` is the '
+        "graph as robots sent it, read from the journal: every triple since the last clearing with its "
+        "original lexical form and datatype (in N-Triples and N-Quads byte for byte as the journal keeps it)."
     ),
     responses={200: {"content": {fmt.media_type: {} for fmt in EXPORTS}}, 406: {}},
     response_class=StreamingResponse,
@@ -31,9 +36,13 @@ async def export_events(
     services: ServicesDep,
     principal: Auditor,
     format: str | None = Query(None, description=f"{', '.join(names(EXPORTS))}; overrides Accept."),
+    form: Literal["store", "received"] = Query("store", description="The store's view, or the journal's."),
 ) -> StreamingResponse:
     fmt = negotiate(EXPORTS, request.headers.get("accept"), format, what="the events graph")
-    chunks = stream_graph(services.store, fmt)
+    if form == "received":
+        chunks = stream_received(services.journal, fmt, services.store.graph_uri)
+    else:
+        chunks = stream_graph(services.store, fmt)
     # Pull the first chunk here so a store that is down is a 503, not a response cut off midway.
     first = await run_in_threadpool(next, chunks, b"")
     return StreamingResponse(chain([first], chunks), media_type=fmt.content_type)

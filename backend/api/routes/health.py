@@ -39,10 +39,11 @@ async def live() -> ProbeResponse:
     "/healthz/ready",
     summary="Readiness",
     description=(
-        'Pings the triple store. 200 with `{"ready": true, "<store kind>": true}` when it answers, '
-        '503 with `"ready": false` (and a `detail`) when it does not. The store kind is `virtuoso`, '
-        "`oxigraph`, `memory` or `sparql`, so on the Virtuoso stack the body is "
-        '`{"ready": true, "virtuoso": true}`.'
+        'Pings the triple store and checks the journal. 200 with `{"ready": true, "<store kind>": true}` when the '
+        "store answers, 503 with `\"ready\": false` (and a `detail`) when it does not or when the journal's disk "
+        "is full (`\"journal\": false`). The store kind is `virtuoso`, `oxigraph`, `memory` or `sparql`, so on "
+        'the Virtuoso stack the body is `{"ready": true, "virtuoso": true}`. While the store has journal entries '
+        'to apply, `"apply_lag": {"entries", "seconds"}` says how far behind it is (absent once caught up).'
     ),
     response_class=ProbeResponse,
     responses={
@@ -52,8 +53,22 @@ async def live() -> ProbeResponse:
 )
 async def ready(services: ServicesDep) -> ProbeResponse:
     store = services.store
-    try:
-        await anyio.to_thread.run_sync(store.ping, limiter=_probe_threads)
-    except StoreError as error:
-        return ProbeResponse({"ready": False, store.kind: False, "detail": str(error)}, status_code=503)
-    return ProbeResponse({"ready": True, store.kind: True})
+
+    def probe() -> tuple[dict[str, object], int]:
+        body: dict[str, object] = {"ready": True, store.kind: True}
+        status = 200
+        try:
+            store.ping()
+        except StoreError as error:
+            body.update({"ready": False, store.kind: False, "detail": str(error)})
+            status = 503
+        if not services.journal.storage_ok():
+            body.update({"ready": False, "journal": False, "detail": f"journal: {services.journal.storage_problem}"})
+            status = 503
+        entries, seconds = services.applier.lag()
+        if entries:  # only then: the tutorial's `{"ready": true, "virtuoso": true}` stays exact when caught up
+            body["apply_lag"] = {"entries": entries, "seconds": round(seconds, 3)}
+        return body, status
+
+    body, status = await anyio.to_thread.run_sync(probe, limiter=_probe_threads)
+    return ProbeResponse(body, status_code=status)

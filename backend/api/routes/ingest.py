@@ -48,12 +48,26 @@ _RDF_BODY = {
     description=(
         "Stores a robot's log. The body is the JSON `SEGBPublisher` sends (`ttl_content`, `user`), or raw "
         "`text/turtle` / `application/n-triples` (claimed user in `?user=`); `Content-Encoding: gzip` is "
-        "accepted. Re-publishing is idempotent: only triples the store lacks are written, and blank nodes "
-        "are skolemised deterministically. Errors: 400 malformed RDF (with line and column), 413 too large, "
-        "415 unsupported Content-Type, 422 empty or malformed body; nothing is written on any error."
+        "accepted. The post is recorded in the journal with its receipt first; a 201 means it is durable there "
+        "and, with `INGEST_ACK=store` (the embedded store's default), applied to the store too. Re-publishing is "
+        "idempotent: only triples the journal lacks are recorded and written, and blank nodes are skolemised "
+        "deterministically. A token with write scopes may only describe subjects under them (403 naming the "
+        "first other one). Errors: 400 malformed RDF (with line and column) or RDF 1.2 triple terms, 403 out "
+        "of scope, 413 too large, 415 unsupported Content-Type, 422 empty or malformed body, 503 with "
+        "`Retry-After` when the store lags too far behind or (with `INGEST_ACK=store`) does not answer, 507 "
+        "when the journal's disk is full. Nothing is written on any error but the 503 after journaling, whose "
+        "post is kept and applied once the store answers."
     ),
     openapi_extra=_RDF_BODY,
-    responses={400: {"description": "Malformed RDF"}, 413: {"description": "Too large"}, 415: {}, 422: {}},
+    responses={
+        400: {"description": "Malformed RDF"},
+        403: {"description": "Out of the token's scopes"},
+        413: {"description": "Too large"},
+        415: {},
+        422: {},
+        503: {"description": "Store behind or unavailable"},
+        507: {"description": "Journal disk full"},
+    },
 )
 async def publish(
     request: Request, body: LimitedBody, services: ServicesDep, principal: Logger, user: str | None = None
@@ -66,14 +80,14 @@ async def publish(
             claimed_user=user,
             max_decompressed_bytes=services.settings.max_decompressed_bytes,
         )
-        result = services.ingest.ingest(payload, actor=principal.username)
+        result = services.ingest.ingest(payload, actor=principal.username, scopes=principal.scopes)
         return result, payload.claimed_user
 
     result, claimed = await run_in_threadpool(work)
     # For the request's log line, which is the one line an ingest writes at INFO.
     request.state.triples_written, request.state.log_id = result.triples_new, result.log_id
     return IngestResponse(
-        message=f"Stored {result.triples_received} triples ({result.triples_new} new).",
+        message=f"Stored {result.triples_received} {_triples(result.triples_received)} ({result.triples_new} new).",
         log_id=result.log_id,
         triples_received=result.triples_received,
         triples_new=result.triples_new,
@@ -89,10 +103,14 @@ async def publish(
     description='Removes every triple of the events graph (admin). The body `{"user": …}` is optional.',
 )
 def delete_all(services: ServicesDep, principal: Admin, body: DeleteAllRequest | None = None) -> DeleteAllResponse:
-    # A plain `def` route runs in the thread pool, so the ledger's SQLite write stays off the event loop.
+    # A plain `def` route runs in the thread pool, so the journal's write stays off the event loop.
     cleared = services.ingest.delete_all(actor=principal.username, claimed_user=body.user if body else None)
     return DeleteAllResponse(
         message="Graph cleared." if cleared.triples_removed else "No TTLs to delete",
         log_id=cleared.log_id,
         triples_removed=cleared.triples_removed,
     )
+
+
+def _triples(count: int) -> str:
+    return "triple" if count == 1 else "triples"

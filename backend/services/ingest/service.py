@@ -1,22 +1,51 @@
-"""Storing robots' RDF: parse, skolemise, write only what the store does not have yet."""
+"""Storing robots' RDF, journal first: parse, check, record in the journal, then (when asked) wait for the store.
+
+Every write goes through here — a post, a clearing, a file import, the demo — so every write has its receipt
+in the journal before the store sees any of it, and the store only ever holds what the journal holds.
+"""
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import time
 import uuid
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from itertools import islice
+from pathlib import Path
+from typing import IO, Literal, cast
 
-from pyoxigraph import Quad
+from pyoxigraph import NamedNode, Quad, RdfFormat, parse
 
+from segb_server.backend.auth import PermissionDenied
+from segb_server.backend.services.errors import InvalidParameter, ServiceError
+from segb_server.backend.services.ingest.applier import Applier
 from segb_server.backend.services.ingest.group_commit import GroupCommit
-from segb_server.backend.services.ingest.parsing import parse_triples
+from segb_server.backend.services.ingest.journal import Journal, PostEntry, triple_digest
+from segb_server.backend.services.ingest.parsing import invalid_rdf, parse_quads, refuse_triple_terms, skolemized
 from segb_server.backend.services.ingest.payloads import RdfPayload
-from segb_server.backend.services.ops.ledger import Entry, Ledger
-from segb_server.backend.services.ops.result_cache import DataVersion
-from segb_server.backend.store.base import Store
+from segb_server.backend.services.ingest.receipts import Receipt
+from segb_server.backend.services.ingest.skolem import might_contain_blank_nodes
+from segb_server.backend.store.base import StoreError, StoreUnavailable
+from segb_server.backend.store.terms import term_text
 
 logger = logging.getLogger("segb.ingest")
+
+Ack = Literal["journal", "store"]
+IMPORT_BATCH_TRIPLES = 20_000
+FILE_FORMATS = {".ttl": RdfFormat.TURTLE, ".turtle": RdfFormat.TURTLE, ".nt": RdfFormat.N_TRIPLES}
+Progress = Callable[[int], None]
+
+
+class JournalBacklogFull(ServiceError):
+    """The store is behind by more entries than JOURNAL_MAX_BACKLOG: posts wait until it catches up (503)."""
+
+    code = "journal_backlog_full"
+
+
+class NotYetApplied(StoreUnavailable):
+    """A post is in the journal, but the store did not apply it within INGEST_APPLY_TIMEOUT_SECONDS."""
 
 
 @dataclass(frozen=True)
@@ -27,109 +56,181 @@ class IngestResult:
     triples_received: int
     triples_new: int
     duration_ms: float
+    sequence: int
 
 
 @dataclass(frozen=True)
 class ClearResult:
-    """What one clearing of the events graph did."""
-
     log_id: str
     triples_removed: int
+    sequence: int
+
+
+@dataclass(frozen=True)
+class ImportResult:
+    path: Path
+    triples_read: int
+    triples_new: int
 
 
 class IngestService:
     """Idempotent ingest: the client re-sends its whole graph every time, so the work that grows with the
-    store (finding what is new) is a per-triple membership test, and only new triples are written.
+    journal is one membership test per triple, and only new triples are recorded and written.
 
-    With a ledger, every accepted post and every clearing leaves a receipt there, whoever calls (the API,
-    the demo loader), so no write path can skip it."""
+    `ack` decides when a post is answered: once its entry is durable in the journal ("journal"), or once the
+    store has applied it too ("store", so the next read shows it)."""
 
     def __init__(
         self,
-        store: Store,
+        journal: Journal,
+        applier: Applier,
         *,
         skolem_base: str,
         max_triples: int,
-        version: DataVersion | None = None,
-        ledger: Ledger | None = None,
+        ack: Ack,
+        apply_timeout: float,
+        max_backlog: int,
     ) -> None:
-        self._store = store
-        self._ledger = ledger
+        self.journal = journal
+        self.applier = applier
+        self.ack = ack
         self._skolem_base = skolem_base
         self._max_triples = max_triples
-        self._version = version or DataVersion()
-        self._writer: GroupCommit[_Post, IngestResult] = GroupCommit(self._commit)
+        self._apply_timeout = apply_timeout
+        self._max_backlog = max_backlog
+        self._writer: GroupCommit[PostEntry, Receipt] = GroupCommit(journal.append_posts)
 
-    def ingest(self, payload: RdfPayload, *, actor: str) -> IngestResult:
-        """Parse (concurrently with other posts), then write and record the post; returns once its triples
-        and its ledger receipt are committed."""
+    def ingest(self, payload: RdfPayload, *, actor: str, scopes: tuple[str, ...] = ()) -> IngestResult:
+        """Parse (concurrently with other posts), check, then journal the post; returns once its entry is
+        durable (and applied, with ack "store")."""
         started = time.perf_counter()
-        quads = parse_triples(
-            payload.data, payload.rdf_format, max_triples=self._max_triples, skolem_base=self._skolem_base
-        )
-        return self._writer.submit(_Post(payload, actor, quads, started))
-
-    def _commit(self, posts: list[_Post]) -> list[IngestResult | BaseException]:
-        """Write a batch of parsed posts one after another, then record all their receipts in one ledger
-        transaction: under concurrent load that is one commit for many posts instead of one each."""
-        outcomes: list[IngestResult | BaseException] = []
-        for post in posts:
-            try:
-                new = self._store.insert_new(post.quads) if post.quads else 0
-            except Exception as error:  # this post fails (e.g. the store is down); the others are still written
-                outcomes.append(error)
-                continue
-            duration_ms = round((time.perf_counter() - post.started) * 1000, 3)
-            outcomes.append(IngestResult(str(uuid.uuid4()), len(post.quads), new, duration_ms))
-        accepted = [
-            (post, result) for post, result in zip(posts, outcomes, strict=True) if isinstance(result, IngestResult)
-        ]
-        if any(result.triples_new for _, result in accepted):
-            self._version.bump()
-        if self._ledger is not None and accepted:
-            self._ledger.append_many([_entry(post, result) for post, result in accepted])
-        for post, result in accepted:
-            logger.debug(
-                "ingest log_id=%s actor=%s claimed_user=%s bytes=%d received=%d new=%d ms=%.1f",
-                result.log_id,
-                post.actor,
-                post.payload.claimed_user,
-                len(post.payload.data),
-                result.triples_received,
-                result.triples_new,
-                result.duration_ms,
-            )
-        return outcomes
+        self._refuse_past_backlog()
+        quads = parse_quads(payload.data, payload.rdf_format, max_triples=self._max_triples)
+        check_scopes(quads, scopes)
+        quads = skolemized(payload.data, quads, self._skolem_base)
+        post = post_entry(quads, actor, payload.claimed_user, hashlib.sha256(payload.data).hexdigest())
+        receipt = self._writer.submit(post)
+        self._acknowledge(receipt)
+        duration_ms = round((time.perf_counter() - started) * 1000, 3)
+        logger.debug(
+            "ingest log_id=%s actor=%s claimed_user=%s bytes=%d received=%d new=%d ms=%.1f",
+            receipt.log_id, actor, payload.claimed_user, len(payload.data), len(quads), receipt.triples_new,
+            duration_ms,
+        )  # fmt: skip
+        return IngestResult(receipt.log_id, len(quads), receipt.triples_new, duration_ms, receipt.sequence)
 
     def delete_all(self, *, actor: str, claimed_user: str | None = None) -> ClearResult:
-        # Outside any ingest batch, so the ledger orders the clearing exactly where the store saw it.
-        with self._writer.exclusive():
-            removed = self._store.clear()
-            self._version.bump()
-            result = ClearResult(log_id=str(uuid.uuid4()), triples_removed=removed)
-            logger.warning("delete_all log_id=%s actor=%s removed=%d", result.log_id, actor, removed)
-            if self._ledger is not None:
-                self._ledger.append(
-                    action="delete_all",
-                    log_id=result.log_id,
-                    user=actor,
-                    claimed_user=claimed_user,
-                    payload=b"",  # no RDF is received: the receipt carries the SHA-256 of the empty payload
-                    triples_removed=removed,
-                )
-        return result
+        receipt = self.journal.append_clear(log_id=str(uuid.uuid4()), user=actor, claimed_user=claimed_user)
+        logger.warning("delete_all log_id=%s actor=%s removed=%d", receipt.log_id, actor, receipt.triples_removed)
+        self._acknowledge(receipt)
+        return ClearResult(receipt.log_id, receipt.triples_removed, receipt.sequence)
+
+    def import_file(self, path: Path, *, actor: str, progress: Progress) -> ImportResult:
+        """Journal a Turtle or N-Triples file in batches (an entry each); `progress(n)` hears of every n bytes.
+
+        A file that may hold blank nodes is parsed whole, because skolemisation needs each blank node's full
+        surroundings; other files stream, so memory stays at one batch."""
+        rdf_format = format_for(path)
+        digest = _file_sha256(path)
+        read = new = 0
+        last: Receipt | None = None
+        for quads, consumed in _file_batches(path, rdf_format, self._skolem_base):
+            check_scopes(quads, ())
+            last = self._writer.submit(post_entry(quads, actor, None, digest))
+            read, new = read + len(quads), new + last.triples_new
+            progress(consumed)
+        if last is not None:
+            self._acknowledge(last)
+        return ImportResult(path, read, new)
+
+    def _refuse_past_backlog(self) -> None:
+        behind = self.journal.head() - self.applier.applied
+        if self._max_backlog and behind > self._max_backlog:
+            raise JournalBacklogFull(
+                f"The store is {behind} entries behind the journal (JOURNAL_MAX_BACKLOG is {self._max_backlog}); "
+                "posts are accepted again as it catches up.",
+                retry_after=5,
+            )
+
+    def _acknowledge(self, receipt: Receipt) -> None:
+        if self.ack == "journal":
+            self.applier.notify()
+            return
+        try:
+            self.applier.apply_pending()  # the poster applies what is pending itself: no hop to another thread
+        except StoreError as error:
+            raise NotYetApplied(
+                f"kept in the journal as log_id {receipt.log_id}, but the store is unavailable ({error}); it is "
+                "applied as soon as the store answers"
+            ) from None
+        if not self.applier.wait_for(receipt.sequence, self._apply_timeout):
+            raise NotYetApplied(
+                f"kept in the journal as log_id {receipt.log_id}; the store has not applied it within "
+                f"{self._apply_timeout:g} s (INGEST_APPLY_TIMEOUT_SECONDS)"
+            )
 
 
-@dataclass(frozen=True)
-class _Post:
-    """A parsed post waiting to be written."""
-
-    payload: RdfPayload
-    actor: str
-    quads: list[Quad]
-    started: float
+def post_entry(quads: list[Quad], user: str, claimed_user: str | None, payload_sha256: str) -> PostEntry:
+    """A post as the journal records it: each distinct triple as its N-Triples line, as received."""
+    lines = list(dict.fromkeys(f"{term_text(q.subject)} {q.predicate} {term_text(q.object)}" for q in quads))
+    return PostEntry(str(uuid.uuid4()), user, claimed_user, payload_sha256, lines, [triple_digest(x) for x in lines])
 
 
-def _entry(post: _Post, result: IngestResult) -> Entry:
-    return Entry("ingest", result.log_id, post.actor, post.payload.claimed_user, post.payload.data,
-                 result.triples_received, result.triples_new)  # fmt: skip
+def check_scopes(quads: list[Quad], scopes: tuple[str, ...]) -> None:
+    """With write scopes, every subject named by an IRI must start with one of them (blank nodes are the
+    post's own); the first that does not refuses the whole post."""
+    if not scopes:
+        return
+    for quad in quads:
+        subject = quad.subject
+        if isinstance(subject, NamedNode) and not subject.value.startswith(scopes):
+            raise PermissionDenied(
+                f"The token may write about {', '.join(scopes)} only; the post describes <{subject.value}>."
+            )
+
+
+def format_for(path: Path) -> RdfFormat:
+    try:
+        return FILE_FORMATS[path.suffix.lower()]
+    except KeyError:
+        raise InvalidParameter("file", f"{path.name}: use a .ttl or .nt file") from None
+
+
+def _file_sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with path.open("rb") as file:
+        while chunk := file.read(1 << 20):
+            digest.update(chunk)
+    return digest.hexdigest()
+
+
+def _file_batches(path: Path, rdf_format: RdfFormat, skolem_base: str) -> Iterator[tuple[list[Quad], int]]:
+    """The file's triples in batches, each with the bytes consumed to read it."""
+    size = path.stat().st_size
+    if _might_contain_blank_nodes(path):
+        data = path.read_bytes()
+        quads = skolemized(data, parse_quads(data, rdf_format, max_triples=len(data)), skolem_base)
+        for start in range(0, len(quads), IMPORT_BATCH_TRIPLES):
+            end = start + IMPORT_BATCH_TRIPLES
+            yield quads[start:end], size if end >= len(quads) else 0
+        return
+    with path.open("rb") as raw:
+        parser = parse(cast(IO[bytes], raw), rdf_format)
+        position = 0
+        try:
+            while batch := list(islice(parser, IMPORT_BATCH_TRIPLES)):
+                refuse_triple_terms(batch, rdf_format)
+                consumed, position = raw.tell() - position, raw.tell()
+                yield batch, consumed
+        except SyntaxError as error:
+            raise invalid_rdf(error, rdf_format) from None
+
+
+def _might_contain_blank_nodes(path: Path) -> bool:
+    with path.open("rb") as file:
+        previous = b""
+        while chunk := file.read(1 << 20):
+            if might_contain_blank_nodes(previous[-1:] + chunk):
+                return True
+            previous = chunk
+    return False

@@ -1,7 +1,7 @@
 """Results derived from the events graph (report pages, the drawable graph), kept until the graph changes.
 
 Reads far outnumber writes in an audit, and a report over 100k triples costs the embedded store 100-250 ms.
-Every write made through this server bumps `DataVersion`, which drops every cached result. Only a store
+Every write the journal's applier makes bumps `DataVersion`, which drops every cached result. Only a store
 this process owns can be cached this way: another writer to a shared Virtuoso would go unnoticed, so the
 cache is off for remote stores.
 """
@@ -14,9 +14,6 @@ from collections.abc import Callable, Hashable
 from typing import TypeVar
 
 T = TypeVar("T")
-
-# Stores written only through this process.
-OWNED_STORES = {"oxigraph", "memory"}
 
 
 class DataVersion:

@@ -5,9 +5,10 @@ from __future__ import annotations
 import logging
 from collections.abc import Iterable, Iterator
 
-from pyoxigraph import NamedNode, Quad, RdfFormat, Triple
+from pyoxigraph import NamedNode, Quad, RdfFormat, Triple, parse
 
 from segb_server.backend.services.formats import Format, rdf_bytes
+from segb_server.backend.services.ingest.journal import Journal
 from segb_server.backend.store.base import Store
 from segb_server.backend.vocabulary import PREFIXES
 
@@ -19,6 +20,19 @@ def stream_graph(store: Store, fmt: Format) -> Iterator[bytes]:
     """The events graph as the store holds it, in `fmt`."""
     batches = ([quad.triple for quad in batch] for batch in store.batches(BATCH_TRIPLES))
     return write_graph(batches, fmt, NamedNode(store.graph_uri))
+
+
+def stream_received(journal: Journal, fmt: Format, graph_uri: str) -> Iterator[bytes]:
+    """The events graph as robots sent it: the journal's content since the last clearing. N-Triples and
+    N-Quads are the journal's own bytes; other syntaxes are written from them."""
+    documents = journal.received_documents()
+    if fmt.rdf == RdfFormat.N_TRIPLES:
+        return documents
+    if fmt.rdf == RdfFormat.N_QUADS:
+        suffix = f" <{graph_uri}> .\n".encode()
+        return (document.replace(b" .\n", suffix) for document in documents)
+    batches = ([quad.triple for quad in parse(document, RdfFormat.N_TRIPLES)] for document in documents)
+    return write_graph(batches, fmt, NamedNode(graph_uri))
 
 
 def write_graph(batches: Iterable[list[Triple]], fmt: Format, graph: NamedNode) -> Iterator[bytes]:

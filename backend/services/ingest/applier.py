@@ -1,0 +1,190 @@
+"""The applier: journal entries written into the triple store, in order, in batches sized for the store.
+
+The store remembers how far it is applied (Store.apply records the cursor with the triples), so after a crash,
+a restart, or the store's own outage, applying resumes there; re-applying an entry changes nothing. A store
+with no cursor (new, wiped, or from before the journal) is brought up from the last clearing. Whoever wants
+entries applied calls `apply_pending` — the background thread, or a post that waits for its own entry — and
+one at a time applies everything the journal holds.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+from pyoxigraph import Quad, RdfFormat, parse
+
+from segb_server.backend.services.ingest.journal import Journal, JournalEntry
+from segb_server.backend.store.base import Store, StoreError
+
+logger = logging.getLogger("segb.applier")
+
+ENTRIES_PER_READ = 500
+FIRST_RETRY_SECONDS = 0.2
+MAX_RETRY_SECONDS = 5.0
+
+
+@dataclass(frozen=True)
+class Applied:
+    """What one step applied: its entries, and the triples they added (none for a clearing)."""
+
+    entries: list[JournalEntry]
+    quads: list[Quad]
+    cleared: bool
+
+
+Listener = Callable[[Applied], None]
+
+
+class Applier:
+    def __init__(self, journal: Journal, store: Store, *, batch_triples: int) -> None:
+        self.journal = journal
+        self.store = store
+        self.batch_triples = batch_triples
+        self._applied: int | None = None  # None: to be read from the store
+        self._apply_lock = threading.Lock()
+        self._progress = threading.Condition()
+        self._wake = threading.Event()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._listeners: list[Listener] = []
+        self.last_error: str | None = None
+
+    # --- the background thread ---------------------------------------------------------------------
+
+    def start(self) -> None:
+        self._thread = threading.Thread(target=self._run, name="segb-applier", daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._wake.set()
+        if self._thread is not None:
+            self._thread.join(timeout=30)
+
+    def notify(self) -> None:
+        """New entries are in the journal."""
+        self._wake.set()
+
+    def _run(self) -> None:
+        delay = FIRST_RETRY_SECONDS
+        while not self._stop.is_set():
+            # Also wakes by itself: another process may have appended entries (several API workers).
+            self._wake.wait(timeout=0.5)
+            self._wake.clear()
+            try:
+                self.apply_pending()
+            except StoreError as error:
+                logger.warning("applying the journal failed (%s); retrying in %.1f s", error, delay)
+                self._stop.wait(delay)
+                delay = min(delay * 2, MAX_RETRY_SECONDS)
+                self._wake.set()
+                continue
+            except Exception:  # never let the thread die: the next entry may apply
+                logger.exception("applying the journal failed")
+                self._stop.wait(delay)
+                continue
+            delay = FIRST_RETRY_SECONDS
+
+    # --- applying ------------------------------------------------------------------------------------
+
+    def on_applied(self, listener: Listener) -> None:
+        """Call `listener` after each step (from the applying thread), e.g. to keep reports current."""
+        self._listeners.append(listener)
+
+    @property
+    def applied(self) -> int:
+        """The entry the store is known to be applied through (0 until first read)."""
+        return self._applied or 0
+
+    def apply_pending(self) -> int:
+        """Apply every entry the journal holds beyond the store's cursor; returns the cursor. Raises
+        StoreError when the store fails (nothing is lost: the next call resumes at the cursor)."""
+        with self._apply_lock:
+            try:
+                if self._applied is None:
+                    self._applied = self._starting_point()
+                while entries := self.journal.entries_after(self._applied, ENTRIES_PER_READ):
+                    for step in self._steps(entries):
+                        self._apply(step)
+            except StoreError as error:
+                self._applied = None  # the store may come back restored or wiped: read its cursor again
+                self.last_error = str(error)
+                raise
+            self.last_error = None
+            return self._applied
+
+    def wait_for(self, sequence: int, timeout: float) -> bool:
+        """Wait until entry `sequence` is applied (True), or `timeout` seconds passed (False)."""
+        deadline = time.monotonic() + timeout
+        with self._progress:
+            while self.applied < sequence:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    return False
+                self._progress.wait(remaining)
+        return True
+
+    def lag(self) -> tuple[int, float]:
+        """Entries not applied yet, and how long the oldest of them has waited (seconds)."""
+        behind = self.journal.head() - self.applied
+        if behind <= 0:
+            return 0, 0.0
+        return behind, self.journal.age_of(self.applied + 1)
+
+    def _starting_point(self) -> int:
+        cursor = self.store.applied_through()
+        head = self.journal.head()
+        if cursor is None or cursor > head:
+            if cursor is not None:
+                logger.warning(
+                    "the store says it is applied through entry %d but the journal ends at %d: it belongs to "
+                    "another journal; applying this journal's entries since its last clearing over it",
+                    cursor,
+                    head,
+                )
+            start = self.journal.last_clearing()
+            logger.info("applying the journal to the %s store from entry %d", self.store.kind, start + 1)
+            return start
+        return cursor
+
+    def _steps(self, entries: Sequence[JournalEntry]) -> list[list[JournalEntry]]:
+        """Consecutive posts grouped up to `batch_triples` triples; a clearing is a step of its own."""
+        steps: list[list[JournalEntry]] = []
+        current: list[JournalEntry] = []
+        size = 0
+        for entry in entries:
+            if entry.action == "delete_all":
+                steps += [current, [entry]] if current else [[entry]]
+                current, size = [], 0
+                continue
+            lines = entry.content.count(b"\n")
+            if current and size + lines > self.batch_triples:
+                steps.append(current)
+                current, size = [], 0
+            current.append(entry)
+            size += lines
+        if current:
+            steps.append(current)
+        return steps
+
+    def _apply(self, entries: list[JournalEntry]) -> None:
+        through = entries[-1].sequence
+        if entries[0].action == "delete_all":
+            self.store.clear(through=through)
+            step = Applied(entries, [], cleared=True)
+        else:
+            quads = [quad for entry in entries if entry.content for quad in parse(entry.content, RdfFormat.N_TRIPLES)]
+            self.store.apply(quads, through)
+            step = Applied(entries, quads, cleared=False)
+        with self._progress:
+            self._applied = through
+            self._progress.notify_all()
+        for listener in self._listeners:
+            try:
+                listener(step)
+            except Exception:  # a listener's failure must not stop the store from being kept current
+                logger.exception("a listener of applied entries failed")
