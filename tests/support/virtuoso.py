@@ -115,6 +115,13 @@ class VirtuosoProcess:
             time.sleep(0.2)
         raise RuntimeError("virtuoso-t did not start serving SPARQL within 60 s")
 
+    def kill(self) -> None:
+        """SIGKILL, as a crash would: Virtuoso recovers from its transaction log at the next start."""
+        if self._process is not None:
+            self._process.kill()
+            self._process.wait()
+            self._process = None
+
     def stop(self) -> None:
         if self._process is None:
             return
