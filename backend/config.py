@@ -84,6 +84,14 @@ class Settings(BaseSettings):
     sparql_timeout_seconds: float = Field(
         30.0, gt=0, description="Longest run of one user SPARQL query (/sparql, /query) before a 503 query_timeout."
     )
+    sparql_workers: int = Field(
+        2, ge=1, description="Worker processes that run user SPARQL on the embedded store (queries at once)."
+    )
+    sparql_max_memory_bytes: int = Field(
+        2 * 1024 * 1024 * 1024,
+        ge=64 * 1024 * 1024,
+        description="Memory one user SPARQL query may use on the embedded store before a 503 query_memory.",
+    )
     sparql_max_rows: int = Field(
         100_000, gt=0, description="Most rows (or triples) one user SPARQL answer holds; more are cut off."
     )

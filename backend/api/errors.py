@@ -14,6 +14,7 @@ from segb_server.backend.services import errors as service_errors
 from segb_server.backend.services.formats import NotAcceptable
 from segb_server.backend.services.ingest.journal import StorageFull
 from segb_server.backend.services.ingest.service import JournalBacklogFull
+from segb_server.backend.services.sparql.runner import QueryTooBig
 from segb_server.backend.store.base import QueryTimeout, StoreError, StoreRejectedQuery, StoreUnavailable
 
 logger = logging.getLogger("segb.api")
@@ -46,6 +47,7 @@ STATUS_BY_ERROR: list[tuple[type[Exception], int]] = [
     (service_errors.InvalidParameter, 422),
     (ReferenceQueryRefused, 422),
     (QueryTimeout, 503),
+    (QueryTooBig, 503),
     (StoreUnavailable, 503),
     (StoreError, 502),
 ]
@@ -68,6 +70,8 @@ def _service_error(request: Request, error: Exception) -> JSONResponse:
         body = error_body(status, f"The triple store ({kind}) is unavailable: {error}", "store_unavailable")
     elif isinstance(error, QueryTimeout):
         body = error_body(status, str(error), "query_timeout", timeout_seconds=error.seconds)
+    elif isinstance(error, QueryTooBig):
+        body = error_body(status, str(error), "query_memory", memory_bytes=error.limit)
     elif isinstance(error, StoreRejectedQuery):
         body = error_body(status, f"The store rejected the query: {error}", "invalid_query")
     elif isinstance(error, StoreError):

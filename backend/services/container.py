@@ -14,6 +14,7 @@ from segb_server.backend.services.shared_context.policy import Policy
 from segb_server.backend.services.shared_context.service import SharedContextService
 from segb_server.backend.services.shared_context.state import STATE_FILE
 from segb_server.backend.services.sparql.catalog import Catalog
+from segb_server.backend.services.sparql.runner import QueryRunner, query_runner
 from segb_server.backend.services.views.explain import ExplainService
 from segb_server.backend.services.views.graph import GraphService
 from segb_server.backend.services.views.reports import ReportService
@@ -37,10 +38,12 @@ class Services:
     graph: GraphService
     explain: ExplainService
     shared_context: SharedContextService
+    queries: QueryRunner
     server_log: ServerLog | None = None  # the API's own log; None where nothing serves it (the CLI, the demo)
 
     def close(self) -> None:
         self.applier.stop()
+        self.queries.close()
         self.journal.close()
         self.shared_context.close()
 
@@ -82,6 +85,13 @@ def build_services(
         explain=ExplainService(graph),
         shared_context=SharedContextService.open(
             Policy.from_settings(settings), None if in_memory else settings.data_dir / STATE_FILE
+        ),
+        queries=query_runner(
+            store,
+            version,
+            workers=settings.sparql_workers,
+            max_memory_bytes=settings.sparql_max_memory_bytes,
+            snapshots=None if in_memory else settings.data_dir / "snapshots",
         ),
         server_log=server_log,
     )

@@ -7,7 +7,7 @@ from collections.abc import Iterator, Sequence
 from itertools import islice
 from pathlib import Path
 
-from pyoxigraph import DefaultGraph, Literal, NamedNode, Quad, QuerySolutions
+from pyoxigraph import DefaultGraph, Literal, NamedNode, Quad, QuerySolutions, RdfFormat
 from pyoxigraph import Store as OxStore
 
 from segb_server.backend.store.base import (
@@ -73,6 +73,16 @@ class OxigraphStore:
                 for quad in old:
                     self._store.remove(quad)
         return removed
+
+    def checkpoint(self, target: Path) -> None:
+        """A consistent copy at `target` that another process can open read-only (hard links: cheap)."""
+        self._store.backup(str(target))
+
+    def dump_nquads(self) -> bytes:
+        """Every quad, for a copy of an in-memory store (which has no files to share)."""
+        written = self._store.dump(format=RdfFormat.N_QUADS)
+        assert written is not None
+        return written
 
     def applied_through(self) -> int | None:
         cursors = [int(quad.object.value) for quad in self._cursor_quads() if isinstance(quad.object, Literal)]

@@ -49,7 +49,7 @@ async def _answer(services: Services, request: ProtocolRequest, accept: str | No
         request.check_dataset(store.graph_uri)
         checked = guard_query(request.query, store.graph_uri)
         fmt = _choose(checked, request, accept)  # before running: an unacceptable request costs no query
-        body, truncated = run_and_write(store, checked, limits_of(services), write_in(fmt))
+        body, truncated = run_and_write(services.queries, checked, limits_of(services), write_in(fmt))
         return body, truncated, fmt
 
     # Checking (rdflib parsing) and the query itself are blocking work.
@@ -158,7 +158,7 @@ async def query_reference(
             checked = guard_query(query, services.store.graph_uri)
         except InvalidQuery as refused:
             raise ReferenceQueryRefused(refused.message, **refused.details) from None
-        return run_and_write(services.store, checked, limits_of(services), rows_as_turtle)
+        return run_and_write(services.queries, checked, limits_of(services), rows_as_turtle)
 
     body, truncated = await run_in_threadpool(work)
     return Response(body, media_type="text/turtle; charset=utf-8", headers=limit_headers(truncated, services))

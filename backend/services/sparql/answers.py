@@ -8,8 +8,9 @@ from pyoxigraph import BlankNode, Literal, NamedNode, QueryBoolean, QuerySolutio
 
 from segb_server.backend.services.formats import GRAPHS, SOLUTIONS, Format, rdf_bytes
 from segb_server.backend.services.sparql.guard import CheckedQuery
-from segb_server.backend.services.sparql.limits import QueryLimits, run_limited
-from segb_server.backend.store.base import QueryResult, Store
+from segb_server.backend.services.sparql.limits import QueryLimits
+from segb_server.backend.services.sparql.runner import QueryRunner
+from segb_server.backend.store.base import QueryResult
 from segb_server.backend.vocabulary import PREFIXES
 
 QueryOutput = QueryResult | list[Triple]  # what a limited run hands over to be written out
@@ -26,14 +27,14 @@ def formats_for(form: str) -> tuple[Format, ...]:
 
 
 def run_and_write(
-    store: Store, checked: CheckedQuery, limits: QueryLimits, write: Callable[[QueryOutput], bytes]
+    runner: QueryRunner, checked: CheckedQuery, limits: QueryLimits, write: Callable[[QueryOutput], bytes]
 ) -> tuple[bytes, bool]:
     """The query's answer written out, and whether it was cut at the row cap.
 
     Only bytes leave this frame: pyoxigraph results must be dropped on the thread that made them, and the
     caller's frame can outlive the call (the SPARQL parser's cache keeps exceptions whose tracebacks reach
     it), which would let the garbage collector drop them on another thread later."""
-    answer = run_limited(store, checked.text, limits)
+    answer = runner.run(checked.text, limits)
     return write(answer.result), answer.truncated
 
 

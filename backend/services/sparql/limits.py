@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from itertools import islice
-from typing import TypeVar
+from typing import Any, TypeVar
 
-from pyoxigraph import QueryBoolean, QueryResultsFormat, QuerySolution, QuerySolutions, Triple, parse_query_results
+from pyoxigraph import QueryBoolean, QueryResultsFormat, QuerySolutions, Triple, parse_query_results
 
 from segb_server.backend.store.base import QueryResult, QueryTimeout, Store, StoreError
 from segb_server.backend.store.terms import term_text
@@ -58,7 +58,7 @@ def _read(result: QueryResult, deadline: float, limits: QueryLimits) -> LimitedR
     if isinstance(result, QuerySolutions):
         read = list(islice(_before(deadline, limits.timeout_seconds, result), wanted))
         kept = read[: limits.max_rows]
-        return LimitedResult(_solutions(result, kept), truncated=len(read) > len(kept), rows=len(kept))
+        return LimitedResult(solutions_of(result.variables, kept), truncated=len(read) > len(kept), rows=len(kept))
     triples = list(islice(_before(deadline, limits.timeout_seconds, result), wanted))
     kept_triples = triples[: limits.max_rows]
     return LimitedResult(kept_triples, truncated=len(triples) > len(kept_triples), rows=len(kept_triples))
@@ -75,10 +75,11 @@ def _check(deadline: float, seconds: float) -> None:
         raise QueryTimeout(seconds)
 
 
-def _solutions(source: QuerySolutions, rows: list[QuerySolution]) -> QuerySolutions:
-    """The rows read as a QuerySolutions again, so pyoxigraph's own writers serialise them: pyoxigraph cannot
-    build one from a list, but it parses SPARQL TSV, whose terms are what `term_text` writes."""
-    names = [variable.value for variable in source.variables]
+def solutions_of(variables: Sequence[Any], rows: Sequence[Any]) -> QuerySolutions:
+    """Rows read (QuerySolution objects, or sequences of terms) as a QuerySolutions again, so pyoxigraph's own
+    writers serialise them: pyoxigraph cannot build one from a list, but it parses SPARQL TSV, whose terms are
+    what `term_text` writes."""
+    names = [variable.value for variable in variables]
     lines = ["\t".join(f"?{name}" for name in names)]
     lines.extend("\t".join("" if term is None else term_text(term) for term in row) for row in rows)
     return parse_query_results(("\n".join(lines) + "\n").encode("utf-8"), QueryResultsFormat.TSV)  # type: ignore[return-value]
