@@ -149,9 +149,29 @@ def _serve(args: argparse.Namespace) -> int:
     if args.only in (None, "api"):
         # No uvicorn access log: the API logs one line per request itself (backend/api/request_context.py).
         api = create_app(settings, store=store)
-        configs.append(uvicorn.Config(api, host=settings.host, port=settings.api_port, access_log=False))
+        configs.append(
+            uvicorn.Config(
+                api,
+                host=settings.host,
+                port=settings.api_port,
+                access_log=False,
+                proxy_headers=True,
+                forwarded_allow_ips=settings.forwarded_allow_ips,
+            )
+        )
     if args.only in (None, "ui"):
-        configs.append(uvicorn.Config(create_ui_app(settings), host=settings.host, port=settings.ui_port))
+        # Only proxies in FORWARDED_ALLOW_IPS may say the browser came over HTTPS (X-Forwarded-Proto): then the
+        # session and CSRF cookies are Secure behind a TLS-terminating proxy.
+        configs.append(
+            uvicorn.Config(
+                create_ui_app(settings),
+                host=settings.host,
+                port=settings.ui_port,
+                access_log=False,
+                proxy_headers=True,
+                forwarded_allow_ips=settings.forwarded_allow_ips,
+            )
+        )
     if args.only in (None, "api"):
         print(f"SEGB API  http://{settings.host}:{settings.api_port}/docs", file=sys.stderr)
     if args.only in (None, "ui"):

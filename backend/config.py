@@ -104,6 +104,10 @@ class Settings(BaseSettings):
         "",
         description="URL the UI uses to reach the API; empty = http://127.0.0.1:<API_PORT>.",
     )
+    forwarded_allow_ips: str = Field(
+        "127.0.0.1",
+        description="Comma-separated addresses of reverse proxies trusted for X-Forwarded-For/-Proto ('*' = any).",
+    )
     cors_origins: str = Field("", description="Comma-separated origins allowed by CORS (empty = CORS off).")
     cors_allow_credentials: bool = Field(
         False, description="Let CORS requests from CORS_ORIGINS carry cookies and HTTP authentication."
