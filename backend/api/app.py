@@ -27,6 +27,7 @@ from segb_server.backend.api.routes import (
     shared_context,
     sparql,
     sparql_examples,
+    validate,
     vocabulary,
 )
 from segb_server.backend.config import Settings
@@ -53,6 +54,7 @@ ROUTERS = [
     health.router,
     auth.router,
     ingest.router,
+    validate.router,
     events.router,
     graph.router,
     ledger.router,
@@ -80,6 +82,7 @@ def create_app(settings: Settings | None = None, store: Store | None = None) -> 
         monitor = StoreMonitor(
             active_store, max_retry_seconds=settings.store_retry_max_seconds, check_seconds=settings.store_check_seconds
         )
+        app.state.services.applier.start()
         try:
             async with anyio.create_task_group() as background:
                 background.start_soon(monitor.run)

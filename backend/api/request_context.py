@@ -65,6 +65,7 @@ class RequestContext:
                 "status": status,
                 "duration_ms": round((time.perf_counter() - started) * 1000, 1),
                 "user": getattr(principal, "username", None),
+                "origin_ip": (scope.get("client") or (None,))[0],  # XFF counts only from a trusted proxy (uvicorn)
                 "triples_written": scope["state"].get("triples_written"),  # set by POST /ttl
                 "log_id": scope["state"].get("log_id"),  # set by POST /ttl
             }

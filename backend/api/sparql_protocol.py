@@ -10,6 +10,10 @@ from fastapi import Request
 from segb_server.backend.services.errors import UnsupportedMediaType
 from segb_server.backend.services.sparql.guard import query_rejected
 
+# rdflib's name for "the default graph" (DATASET_DEFAULT_GRAPH_ID): its SPARQLStore sends it as
+# `default-graph-uri` for queries through a Dataset, meaning the endpoint's default graph, which is ours.
+RDFLIB_DEFAULT_GRAPH = "urn:x-rdflib:default"
+
 
 @dataclass(frozen=True)
 class ProtocolRequest:
@@ -22,7 +26,7 @@ class ProtocolRequest:
 
     def check_dataset(self, graph_uri: str) -> None:
         """The dataset parameters may only restate the fixed dataset (the events graph as default graph)."""
-        if self.named_graphs or any(graph != graph_uri for graph in self.default_graphs):
+        if self.named_graphs or any(graph not in (graph_uri, RDFLIB_DEFAULT_GRAPH) for graph in self.default_graphs):
             raise query_rejected(
                 "dataset",
                 f"The dataset is fixed: the events graph <{graph_uri}> is the default graph and there are no "
@@ -44,7 +48,8 @@ def from_post(request: Request, body: bytes) -> ProtocolRequest:
         raise query_rejected("syntax", f"The body is not UTF-8: {error}.") from None
     fields = {key: request.query_params.getlist(key) for key in request.query_params}
     if media_type == "application/sparql-query":
-        fields["query"] = [text]
+        # A `query` in the query string as well is a second query (the protocol's bad_multiple_queries).
+        fields["query"] = [*fields.get("query", []), text]
     elif media_type == "application/x-www-form-urlencoded":
         for key, values in parse_qs(text, keep_blank_values=True).items():
             fields[key] = fields.get(key, []) + values

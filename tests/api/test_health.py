@@ -58,7 +58,7 @@ def wait_until_ready(url: str, timeout: float = 30) -> httpx.Response:
     deadline = time.monotonic() + timeout
     while True:
         answer = httpx.get(url)
-        if answer.status_code == 200 and "apply_lag" not in answer.json() or time.monotonic() > deadline:
+        if (answer.status_code == 200 and "apply_lag" not in answer.json()) or time.monotonic() > deadline:
             return answer
         time.sleep(0.1)
 

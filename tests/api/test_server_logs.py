@@ -1,5 +1,6 @@
-"""The structured server log over real HTTP: one entry per request (id, user, route, status, duration, triples
-written), warnings of the server, filters, the rotated file read back newest first, and admin-only access."""
+"""The structured server log over real HTTP: one entry per request (id, user, client, route, status, duration,
+triples written), warnings of the server, filters, the rotated file read back newest first, admin-only access,
+and the reference backend's answer shape, which its web UI reads."""
 
 from __future__ import annotations
 
@@ -62,7 +63,7 @@ def test_each_request_is_logged_with_its_id_user_route_status_and_triples(server
 
     [refused] = read_log(server, contains="AUDIT-7").json()["entries"]  # any case
     assert (refused["path"], refused["status"], refused["user"]) == ("/reports/nope", 404, "eve")
-    assert "triples_written" not in refused
+    assert refused["triples_written"] is None
 
 
 def test_entries_come_newest_first_and_filter_by_minimum_level(server: LiveServer) -> None:
@@ -81,13 +82,63 @@ def test_entries_come_newest_first_and_filter_by_minimum_level(server: LiveServe
 
 @pytest.mark.parametrize(
     "params",
-    [{"level": "loud"}, {"limit": 0}, {"limit": 1001}, {"limit": "many"}, {"contains": "x" * 201}],
+    [{"level": "loud"}, {"limit": 0}, {"limit": 2001}, {"limit": "many"}, {"contains": "x" * 201}],
     ids=["bad level", "limit 0", "limit too big", "limit not a number", "contains too long"],
 )
 def test_bad_filters_are_refused_with_422(server: LiveServer, params: dict[str, object]) -> None:
     answer = read_log(server, **params)
     assert answer.status_code == 422
     assert answer.json()["error"] == "invalid_request"
+
+
+REFERENCE_KEYS = {"log_file", "count", "filters", "entries"}
+REFERENCE_ENTRY_KEYS = {"timestamp", "level", "logger", "request_id", "actor", "origin_ip", "message", "raw"}
+
+
+def test_the_answer_is_a_superset_of_the_reference_shape(server: LiveServer) -> None:
+    for n in range(3):
+        httpx.get(f"{server.url}/auth/whoami", headers={"X-Request-ID": f"shape-{n}", **bearer("eve", "auditor")})
+
+    # What the reference UI's /system/logs page sends: its row count (up to 2,000), a level, a text.
+    answer = read_log(server, limit=2000, level="info", contains="  SHAPE-  ")
+    assert answer.status_code == 200, answer.text
+    body = answer.json()
+    assert REFERENCE_KEYS | {"source"} == set(body)
+    assert body["log_file"] is None  # kept in memory: there is no file
+    assert body["filters"] == {"limit": 2000, "level": "INFO", "contains": "SHAPE-"}  # normalised, trimmed
+    assert body["count"] == len(body["entries"]) == 3
+    for entry in body["entries"]:
+        assert set(entry) >= REFERENCE_ENTRY_KEYS
+        assert entry["timestamp"] == entry["time"] and entry["actor"] == entry["user"] == "eve"
+        assert entry["origin_ip"] == "127.0.0.1"  # the TCP peer of the request
+        raw = json.loads(entry["raw"])
+        assert raw == {key: value for key, value in entry.items() if key in raw}
+        assert raw["request_id"] == entry["request_id"] and "raw" not in raw
+    assert [entry["request_id"] for entry in body["entries"]] == ["shape-2", "shape-1", "shape-0"]
+
+
+def test_a_blank_level_or_text_is_no_filter_as_the_reference_takes_it(server: LiveServer) -> None:
+    logging.getLogger("segb.store").info("blank-filter info")
+    logging.getLogger("segb.store").warning("blank-filter warning")
+    every_level = read_log(server, level="", contains="blank-filter")
+    assert every_level.status_code == 200, every_level.text
+    assert every_level.json()["filters"]["level"] is None
+    assert [entry["level"] for entry in every_level.json()["entries"]] == ["WARNING", "INFO"]
+    assert read_log(server, level="warning", contains="blank-filter").json()["count"] == 1
+    no_text = read_log(server, contains="   ")
+    assert no_text.json()["filters"]["contains"] is None and no_text.json()["count"] > 2
+
+
+def test_the_origin_is_the_peer_or_what_a_trusted_proxy_saw_never_the_first_forwarded_hop(server: LiveServer) -> None:
+    httpx.get(f"{server.url}/healthz/live", headers={"X-Request-ID": "direct-1"})
+    # uvicorn trusts X-Forwarded-For only from FORWARDED_ALLOW_IPS (127.0.0.1 by default, as here), and takes
+    # the last hop that proxy saw; the first hop, which any client can write (the reference logged it), is not it.
+    httpx.get(
+        f"{server.url}/healthz/live", headers={"X-Request-ID": "proxied-1", "X-Forwarded-For": "203.0.113.9, 10.0.0.1"}
+    )
+    [direct] = read_log(server, contains="direct-1").json()["entries"]
+    [proxied] = read_log(server, contains="proxied-1").json()["entries"]
+    assert (direct["origin_ip"], proxied["origin_ip"]) == ("127.0.0.1", "10.0.0.1")
 
 
 def test_only_admins_read_the_log(server: LiveServer) -> None:
@@ -114,8 +165,20 @@ def test_the_file_log_rotates_and_is_read_back_across_backups(file_server: LiveS
     assert all(json.loads(line)["time"] for line in log.read_text().splitlines())
     answer = read_log(file_server, contains="rot-", limit=60)
     assert answer.json()["source"] == "file"
+    assert answer.json()["log_file"] == str(log.resolve())
+    assert all(json.loads(entry["raw"])["request_id"] == entry["request_id"] for entry in answer.json()["entries"])
     ids = [entry["request_id"] for entry in answer.json()["entries"]]
     assert ids[:3] == ["rot-59", "rot-58", "rot-57"]
     assert len(ids) > 20 and ids == sorted(ids, reverse=True)  # older entries come from the backups
     for path in (tmp_path / "logs").iterdir():
         assert token not in path.read_text()  # the query string (and any header) never reaches the log
+
+
+def test_lines_that_are_not_log_entries_are_skipped(file_server: LiveServer, tmp_path: Path) -> None:
+    httpx.get(f"{file_server.url}/healthz/live", headers={"X-Request-ID": "before-damage"})
+    with (tmp_path / "logs" / "server.jsonl").open("a", encoding="utf-8") as log:
+        log.write('not json\n[1, 2]\n{"level": "INFO", "message": "no time"}\n{"time": 5, "level": "INFO"}\n')
+    answer = read_log(file_server, limit=2000)
+    assert answer.status_code == 200, answer.text
+    assert "before-damage" in [entry["request_id"] for entry in answer.json()["entries"]]
+    assert all(isinstance(entry["time"], str) for entry in answer.json()["entries"])

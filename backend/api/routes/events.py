@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from itertools import chain
 from typing import Literal
 
 from fastapi import APIRouter, Query, Request
@@ -42,7 +41,7 @@ async def export_events(
     if form == "received":
         chunks = stream_received(services.journal, fmt, services.store.graph_uri)
     else:
-        chunks = stream_graph(services.store, fmt)
-    # Pull the first chunk here so a store that is down is a 503, not a response cut off midway.
-    first = await run_in_threadpool(next, chunks, b"")
-    return StreamingResponse(chain([first], chunks), media_type=fmt.content_type)
+        # The store's first batch is read before answering, so a store that is down is a 503, not an answer
+        # cut off midway.
+        chunks = await run_in_threadpool(stream_graph, services.store, fmt)
+    return StreamingResponse(chunks, media_type=fmt.content_type)

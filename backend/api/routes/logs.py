@@ -1,4 +1,7 @@
-"""GET /logs/server: the structured server log, newest first, filtered by level and text (admin)."""
+"""GET /logs/server: the structured server log, newest first, filtered by level and text (admin).
+
+The answer is a superset of the reference backend's (`log_file`, `count`, `filters`, and per entry `timestamp`,
+`actor`, `origin_ip`, `raw`), so its web UI reads it too."""
 
 from __future__ import annotations
 
@@ -13,8 +16,8 @@ from segb_server.backend.services.ops.server_log import LEVELS
 
 router = APIRouter(tags=["operations"])
 
-MAX_ENTRIES = 1000
-LEVEL_PATTERN = "(?i)^(" + "|".join(LEVELS) + ")$"
+MAX_ENTRIES = 2000  # the reference's cap, which its web UI lets users ask for
+LEVEL_PATTERN = "(?i)^(" + "|".join(LEVELS) + ")?$"  # blank: no filter, as the reference takes it
 
 
 class LogEntry(BaseModel):
@@ -24,6 +27,7 @@ class LogEntry(BaseModel):
     message: str
     request_id: str | None = None
     user: str | None = None
+    origin_ip: str | None = Field(None, description="The client's address (the TCP peer) of a request entry.")
     method: str | None = None
     path: str | None = None
     status: int | None = None
@@ -31,9 +35,21 @@ class LogEntry(BaseModel):
     triples_written: int | None = None
     log_id: str | None = Field(None, description="The ingest's `log_id` (as in its answer and the ledger).")
     exception: str | None = Field(None, description="Type and message of an error logged with its exception.")
+    timestamp: str | None = Field(None, description="The reference's name for `time`.")
+    actor: str | None = Field(None, description="The reference's name for `user`.")
+    raw: str = Field(description="The entry's line in the log file (JSON).")
+
+
+class Filters(BaseModel):
+    limit: int
+    level: str | None = Field(description="The lowest level shown, upper-case; null when not filtered.")
+    contains: str | None
 
 
 class LogEntries(BaseModel):
+    log_file: str | None = Field(description="Absolute path of the current log file; null when kept in memory.")
+    count: int = Field(description="Number of entries returned.")
+    filters: Filters = Field(description="The filters applied, normalised.")
     entries: list[LogEntry]
     source: str = Field(description="`file` (DATA_DIR/logs/server.jsonl and its backups) or `memory`.")
 
@@ -41,24 +57,36 @@ class LogEntries(BaseModel):
 @router.get(
     "/logs/server",
     response_model=LogEntries,
-    response_model_exclude_none=True,
     summary="Server log",
     description=(
         "The server's structured log, newest first: one entry per request (id, method, path, status, duration, "
-        "user, triples written) and every warning or error of the server. `level` keeps that level and above; "
-        "`contains` keeps entries holding that text in any field (any case). Reads the rotated backups too "
-        "when `limit` needs them. Tokens and bodies are never logged."
+        "user, client address, triples written) and every warning or error of the server. `level` keeps that "
+        "level and above (blank: every level); `contains` keeps entries holding that text in any field (any "
+        "case). Reads the rotated backups too when `limit` needs them. Tokens and bodies are never logged. "
+        "The reference backend's fields are there too: `log_file`, `count`, `filters`, and per entry "
+        "`timestamp`, `actor`, `origin_ip` and `raw`."
     ),
 )
 def server_log(
     services: ServicesDep,
     principal: Admin,
     limit: int = Query(100, ge=1, le=MAX_ENTRIES, description=f"Most entries returned (1 to {MAX_ENTRIES})."),
-    level: str = Query("DEBUG", pattern=LEVEL_PATTERN, description=f"Lowest level shown: {', '.join(LEVELS)}."),
+    level: str | None = Query(
+        None, pattern=LEVEL_PATTERN, description=f"Lowest level shown: {', '.join(LEVELS)} (any case)."
+    ),
     contains: str | None = Query(None, max_length=200, description="Text the entry must hold (any case)."),
 ) -> dict[str, Any]:
     # A plain `def` route runs in the thread pool, so reading the log files stays off the event loop.
     log = services.server_log
     if log is None:
         raise NotFound("This server keeps no log.")
-    return {"entries": log.read(limit, level.upper(), contains), "source": log.source}
+    lowest = level.upper() if level else None
+    needle = contains.strip() if contains and contains.strip() else None
+    entries = log.read(limit, lowest or LEVELS[0], needle)
+    return {
+        "log_file": log.file,
+        "count": len(entries),
+        "filters": {"limit": limit, "level": lowest, "contains": needle},
+        "entries": entries,
+        "source": log.source,
+    }

@@ -6,9 +6,10 @@ Compatible with `HTTPSharedContextResolver` of the PyPI `semantic-log-generator`
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import asdict
 from datetime import datetime
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Body, Path
 from fastapi.concurrency import run_in_threadpool
@@ -16,6 +17,7 @@ from pydantic import BaseModel, Field, field_validator
 
 from segb_server.backend.api.deps import Admin, Auditor, Logger, ServicesDep
 from segb_server.backend.services.clock import utc_iso
+from segb_server.backend.services.errors import Conflict, InvalidParameter, NotFound
 from segb_server.backend.services.shared_context.policy import RESOLVER_VERSION, atom, epoch, scoring_text
 from segb_server.backend.services.shared_context.service import ContextRecord, Decision, Observation
 from segb_server.backend.services.shared_context.state import Case
@@ -232,23 +234,39 @@ async def review_pending(services: ServicesDep, principal: Admin) -> ReviewQueue
     )
 
 
+_REFUSED: dict[int | str, dict[str, Any]] = {
+    422: {"description": "No such case, the case is already decided, or the target is not a candidate"}
+}
+
+
+def _decided(decide: Callable[[], Decision]) -> DecisionOut:
+    """The reference answers 422 for a case that does not exist or is no longer pending, and its web UI and
+    scripts expect that, so those refusals are 422 here too (naming `case_id`)."""
+    try:
+        return DecisionOut.of(decide())
+    except (NotFound, Conflict) as refused:
+        raise InvalidParameter("case_id", refused.message) from None
+
+
 @router.post(
     "/review/{case_id}/accept",
     response_model=DecisionOut,
     summary="Accept a review case: merge its context into the chosen candidate",
-    responses={404: {"description": "No such case"}, 409: {"description": "The case is already decided"}},
+    responses=_REFUSED,
 )
 async def accept(case_id: CaseId, decision: AcceptRequest, services: ServicesDep, principal: Admin) -> DecisionOut:
-    return DecisionOut.of(await run_in_threadpool(services.shared_context.accept, case_id, decision.target_context_uri))
+    return await run_in_threadpool(
+        _decided, lambda: services.shared_context.accept(case_id, decision.target_context_uri)
+    )
 
 
 @router.post(
     "/review/{case_id}/reject",
     response_model=DecisionOut,
     summary="Reject a review case: its context stays apart and these candidates are not proposed again",
-    responses={404: {"description": "No such case"}, 409: {"description": "The case is already decided"}},
+    responses=_REFUSED,
 )
 async def reject(
     case_id: CaseId, services: ServicesDep, principal: Admin, body: dict[str, object] | None = Body(None)
 ) -> DecisionOut:
-    return DecisionOut.of(await run_in_threadpool(services.shared_context.reject, case_id))
+    return await run_in_threadpool(_decided, lambda: services.shared_context.reject(case_id))

@@ -3,10 +3,11 @@
 The report has the reference backend's shape (`valid`, `syntax_ok`, `semantic_ok`, `triple_count`, `issues`)
 and two kinds of findings:
 
-* what the ingest refuses: the body is unwrapped and parsed by the ingest's own functions (payloads.py,
-  parsing.py), so this verdict cannot drift from POST /ttl: syntax errors with line and column (relative IRIs
-  among them), RDF 1.2 triple terms, the triple and token limits, an empty document. `ingest_ok` says whether
-  POST /ttl would store the document.
+* what the ingest refuses: the body goes through the ingest's own steps (payloads.py, parsing.py, the write
+  scopes of service.py), so this verdict cannot drift from POST /ttl: syntax errors with line and column
+  (relative IRIs among them), RDF 1.2 triple terms, the triple and token limits, an empty document, subjects
+  outside the caller's write scopes. `ingest_ok` says whether POST /ttl would store the document for the
+  same caller.
 * the reference's rules on the PyPI client's vocabulary (a literal where a resource belongs, timestamps that
   are not xsd:dateTime, intensities outside [0, 1], subjects without a type). The ingest does not enforce
   them, but the reference's web UI inserts only what validates, so their errors make `valid` false.
@@ -25,9 +26,11 @@ from decimal import Decimal, InvalidOperation
 
 from pyoxigraph import BlankNode, Literal, NamedNode, Quad, Triple
 
+from segb_server.backend.auth import PermissionDenied
 from segb_server.backend.services.errors import EmptyPayload, InvalidRdf, PayloadTooLarge
-from segb_server.backend.services.ingest.parsing import parse_triples
+from segb_server.backend.services.ingest.parsing import parse_quads
 from segb_server.backend.services.ingest.payloads import decode_ingest_body
+from segb_server.backend.services.ingest.service import check_scopes
 from segb_server.backend.store.terms import term_text
 from segb_server.backend.vocabulary import PREFIXES
 
@@ -93,6 +96,12 @@ class ValidationReport:
         if len(self.issues) < MAX_ISSUES:
             self.issues.append(issue)
 
+    def refused(self, issue: Issue) -> ValidationReport:
+        """The report on a document POST /ttl would refuse, for the reason `issue` gives."""
+        self.ingest_ok = False
+        self.add(issue)
+        return self
+
 
 def validate_body(
     body: bytes,
@@ -101,10 +110,11 @@ def validate_body(
     content_encoding: str | None,
     max_decompressed_bytes: int,
     max_triples: int,
-    skolem_base: str,
+    scopes: tuple[str, ...] = (),
 ) -> ValidationReport:
-    """The report on a POST /ttl body. Raises the ingest's own errors for a request it would refuse before
-    reading any RDF (unsupported type or encoding, bad JSON, over the decompressed limit)."""
+    """The report on a POST /ttl body from a caller with write `scopes`. Raises the ingest's own errors for a
+    request it would refuse before reading any RDF (unsupported type or encoding, bad JSON, too large once
+    decompressed). Blank nodes are checked as they came: skolemising them refuses nothing."""
     report = ValidationReport()
     try:
         payload = decode_ingest_body(
@@ -115,23 +125,21 @@ def validate_body(
             max_decompressed_bytes=max_decompressed_bytes,
         )
     except EmptyPayload as error:
-        report.ingest_ok = False
-        report.add(Issue("error", "SEM_EMPTY_GRAPH", f"The document holds no triples. {error.message}"))
-        return report
+        return report.refused(Issue("error", "SEM_EMPTY_GRAPH", f"The document holds no triples. {error.message}"))
     try:
-        quads = parse_triples(payload.data, payload.rdf_format, max_triples=max_triples, skolem_base=skolem_base)
+        quads = parse_quads(payload.data, payload.rdf_format, max_triples=max_triples)
     except InvalidRdf as error:
-        report.ingest_ok = False
         line, column = error.details.get("line"), error.details.get("column")
         # The parser always gives a position; a refusal without one is about content that parsed.
         report.syntax_ok = line is None
         code = "INGEST_REFUSED" if line is None else "TTL_SYNTAX_ERROR"
-        report.add(Issue("error", code, error.message, line=line, column=column))
-        return report
+        return report.refused(Issue("error", code, error.message, line=line, column=column))
     except PayloadTooLarge as error:
-        report.ingest_ok = False
-        report.add(Issue("error", "INGEST_TOO_LARGE", error.message))
-        return report
+        return report.refused(Issue("error", "INGEST_TOO_LARGE", error.message))
+    try:
+        check_scopes(quads, scopes)
+    except PermissionDenied as error:
+        return report.refused(Issue("error", "INGEST_OUT_OF_SCOPE", str(error)))
     report.triple_count = len(quads)
     if not quads:
         report.add(Issue("error", "SEM_EMPTY_GRAPH", "The document holds no triples."))
@@ -214,5 +222,5 @@ def _finding(code: str, message: str, quad: Quad) -> Issue:
 
 
 def _text(term: NamedNode | BlankNode | Literal | Triple) -> str:
-    """An IRI or a literal's lexical form; parse_triples has refused triple terms, written out just in case."""
-    return term_text(term) if isinstance(term, Triple) else term.value
+    """An IRI or a literal's lexical form; a blank node as `_:id` (triple terms are refused before)."""
+    return term.value if isinstance(term, NamedNode | Literal) else term_text(term)

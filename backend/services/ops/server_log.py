@@ -2,7 +2,9 @@
 bounded in-memory ring for a throwaway server), and the reader behind GET /logs/server.
 
 Records carry only what the code logs: request lines hold the id, method, path (never the query string),
-status, duration, user and triples written; no token or body is ever logged.
+status, duration, user, client address and triples written; no token or body is ever logged. Entries read
+back also carry the reference backend's names for the same facts (`timestamp`, `actor`, `raw`), which its web
+UI reads.
 """
 
 from __future__ import annotations
@@ -22,7 +24,8 @@ from segb_server.backend.services.clock import utc_iso
 ROOT_LOGGER = "segb"
 LEVELS = ("DEBUG", "INFO", "WARNING", "ERROR", "CRITICAL")
 # Structured fields a record may carry (passed as `extra=` by the request logger and others).
-FIELDS = ("request_id", "user", "method", "path", "status", "duration_ms", "triples_written", "log_id")
+FIELDS = ("request_id", "user", "origin_ip", "method", "path", "status", "duration_ms", "triples_written", "log_id")
+REQUIRED = ("time", "level", "logger", "message")  # what every entry has; a line without them was not ours
 RING_ENTRIES = 5000
 
 Entry = dict[str, Any]
@@ -45,9 +48,18 @@ def entry_of(record: logging.LogRecord) -> Entry:
     return entry
 
 
+def line_of(entry: Entry) -> str:
+    return json.dumps(entry, ensure_ascii=False, default=str)
+
+
+def with_reference_fields(entry: Entry, raw: str) -> Entry:
+    """The entry plus the reference's names: `timestamp` (the time), `actor` (the user), `raw` (the log line)."""
+    return {**entry, "timestamp": entry.get("time"), "actor": entry.get("user"), "raw": raw}
+
+
 class _JsonLines(RotatingFileHandler):
     def format(self, record: logging.LogRecord) -> str:
-        return json.dumps(entry_of(record), ensure_ascii=False, default=str)
+        return line_of(entry_of(record))
 
 
 class _Ring(logging.Handler):
@@ -93,6 +105,11 @@ class ServerLog:
     def source(self) -> str:
         return "memory" if self.path is None else "file"
 
+    @property
+    def file(self) -> str | None:
+        """The absolute path of the current log file; None when the log is kept in memory."""
+        return None if self.path is None else str(self.path.resolve())
+
     def install(self) -> None:
         logger = logging.getLogger(ROOT_LOGGER)
         logger.addHandler(self.handler)
@@ -106,24 +123,25 @@ class ServerLog:
         self.handler.close()
 
     def read(self, limit: int, level: str = "DEBUG", contains: str | None = None) -> list[Entry]:
-        """Up to `limit` entries at `level` or above whose text holds `contains` (any case), newest first;
-        blocking file reads, so call it off the event loop."""
+        """Up to `limit` entries at `level` or above whose text holds `contains` (any case), newest first, with
+        the reference's field names too; blocking file reads, so call it off the event loop."""
         lowest = LEVELS.index(level)
         needle = contains.casefold() if contains else None
         found: list[Entry] = []
-        for entry in self._newest_first():
+        for entry, raw in self._newest_first():
             if entry.get("level") not in LEVELS or LEVELS.index(entry["level"]) < lowest:
                 continue
             if needle and needle not in " ".join(str(value) for value in entry.values()).casefold():
                 continue
-            found.append(entry)
+            found.append(with_reference_fields(entry, raw))
             if len(found) >= limit:
                 break
         return found
 
-    def _newest_first(self) -> Iterator[Entry]:
+    def _newest_first(self) -> Iterator[tuple[Entry, str]]:
+        """Entries with the line each was read from."""
         if isinstance(self.handler, _Ring):
-            yield from self.handler.newest_first()
+            yield from ((entry, line_of(entry)) for entry in self.handler.newest_first())
             return
         assert self.path is not None
         # The current file, then its rotated backups (.1 is the most recent), read only as far as needed.
@@ -136,11 +154,11 @@ class ServerLog:
             yield from _parsed(reversed(lines))
 
 
-def _parsed(lines: Iterable[str]) -> Iterator[Entry]:
+def _parsed(lines: Iterable[str]) -> Iterator[tuple[Entry, str]]:
     for line in lines:
         try:
             entry = json.loads(line)
         except ValueError:
             continue  # a line being written right now, or damaged by hand
-        if isinstance(entry, dict):
-            yield entry
+        if isinstance(entry, dict) and all(isinstance(entry.get(key), str) for key in REQUIRED):
+            yield entry, line

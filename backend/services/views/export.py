@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Iterable, Iterator
+from itertools import chain
 
 from pyoxigraph import NamedNode, Quad, RdfFormat, Triple, parse
 
@@ -17,9 +18,12 @@ logger = logging.getLogger("segb.export")
 
 
 def stream_graph(store: Store, fmt: Format) -> Iterator[bytes]:
-    """The events graph as the store holds it, in `fmt`."""
+    """The events graph as the store holds it, in `fmt`. The first batch is read here, before any byte is
+    written, so a store that does not answer is an error the caller can still turn into a status (blocking:
+    call it off the event loop)."""
     batches = ([quad.triple for quad in batch] for batch in store.batches(BATCH_TRIPLES))
-    return write_graph(batches, fmt, NamedNode(store.graph_uri))
+    first = next(batches, None)
+    return write_graph(chain([] if first is None else [first], batches), fmt, NamedNode(store.graph_uri))
 
 
 def stream_received(journal: Journal, fmt: Format, graph_uri: str) -> Iterator[bytes]:
