@@ -37,17 +37,34 @@ class BackendClient:
         token: str | None = None,
         params: dict[str, Any] | None = None,
         json: Any = None,
+        content: bytes | None = None,
         headers: dict[str, str] | None = None,
     ) -> httpx.Response:
-        sent_headers = dict(headers or {})
-        if token:
-            sent_headers["Authorization"] = f"Bearer {token}"
-        clean_params = {key: value for key, value in (params or {}).items() if value not in (None, "")}
         try:
-            response = await self._client.request(method, path, params=clean_params, json=json, headers=sent_headers)
+            response = await self._client.request(
+                method, path, params=_clean(params), json=json, content=content, headers=_with_token(headers, token)
+            )
         except httpx.HTTPError as error:
             raise BackendUnavailable(f"The SEGB API at {self.base_url} does not answer ({error}).") from error
         if response.status_code >= 400:
+            raise BackendError(response.status_code, _detail(response))
+        return response
+
+    async def open_stream(
+        self, path: str, *, token: str | None = None, params: dict[str, Any] | None = None
+    ) -> httpx.Response:
+        """A GET whose body is still to be read, chunk by chunk (`aiter_bytes`); the caller closes it. Error
+        statuses raise before any of the body is passed on."""
+        request = self._client.build_request("GET", path, params=_clean(params), headers=_with_token(None, token))
+        try:
+            response = await self._client.send(request, stream=True)
+        except httpx.HTTPError as error:
+            raise BackendUnavailable(f"The SEGB API at {self.base_url} does not answer ({error}).") from error
+        if response.status_code >= 400:
+            try:
+                await response.aread()
+            finally:
+                await response.aclose()
             raise BackendError(response.status_code, _detail(response))
         return response
 
@@ -58,8 +75,16 @@ class BackendClient:
         return (await self.request("POST", path, token=token, json=body)).json()
 
     async def sparql(self, query: str, fmt: str, *, token: str | None = None) -> httpx.Response:
-        """The raw answer of `GET /sparql` in format `fmt`, headers included (`X-SEGB-Truncated`)."""
-        return await self.request("GET", "/sparql", token=token, params={"query": query, "format": fmt})
+        """The raw answer of `/sparql` in format `fmt`, headers included (`X-SEGB-Truncated`). Posted, so a
+        long query never meets a URL length limit."""
+        return await self.request(
+            "POST",
+            "/sparql",
+            token=token,
+            params={"format": fmt},
+            content=query.encode("utf-8"),
+            headers={"Content-Type": "application/sparql-query"},
+        )
 
     async def probe(self, path: str) -> tuple[int, Any]:
         """Status and JSON body of a public probe, without raising on error statuses."""
@@ -74,6 +99,17 @@ class BackendClient:
 
     async def aclose(self) -> None:
         await self._client.aclose()
+
+
+def _with_token(headers: dict[str, str] | None, token: str | None) -> dict[str, str]:
+    sent = dict(headers or {})
+    if token:
+        sent["Authorization"] = f"Bearer {token}"
+    return sent
+
+
+def _clean(params: dict[str, Any] | None) -> dict[str, Any]:
+    return {key: value for key, value in (params or {}).items() if value not in (None, "")}
 
 
 def _detail(response: httpx.Response) -> str:

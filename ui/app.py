@@ -17,7 +17,20 @@ from segb_server.ui.api_client import BackendClient, BackendError, BackendUnavai
 from segb_server.ui.csrf import CsrfCookieMiddleware, CsrfRejected
 from segb_server.ui.forms import BadForm
 from segb_server.ui.pages import error_page
-from segb_server.ui.routes import graph, health, home, ledger, logs, query, reports, session, shared_context
+from segb_server.ui.routes import (
+    clear,
+    export,
+    graph,
+    health,
+    home,
+    insert,
+    ledger,
+    logs,
+    query,
+    reports,
+    session,
+    shared_context,
+)
 from segb_server.ui.security import SecurityHeaders
 from segb_server.ui.session import ViewerCache, ViewerMiddleware
 
@@ -32,6 +45,9 @@ ROUTERS = [
     ledger.router,
     shared_context.router,
     query.router,
+    insert.router,
+    clear.router,
+    export.router,
     logs.router,
 ]
 

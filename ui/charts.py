@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from datetime import datetime
 
 from segb_server.ui.display import parse_time, short_iri, when
+from segb_server.ui.namesakes import Name
 
 # Big Six categories get fixed, distinguishable colours; any other category a robot invents gets a stable
 # colour derived from its name.
@@ -54,6 +55,7 @@ class Series:
 class Tick:
     position: float
     label: str
+    anchor: str = "middle"  # SVG text-anchor: the first and last time labels are kept inside the plot
 
 
 @dataclass
@@ -63,6 +65,7 @@ class LineChart:
     title: str
     subject: str
     kind: str
+    qualifier: str = ""  # what tells this participant from a namesake
     width: int = 640
     height: int = 220
     left: int = 44
@@ -82,19 +85,21 @@ class LineChart:
         return self.height - self.bottom
 
 
-def emotion_charts(rows: Iterable[Mapping[str, object]]) -> list[LineChart]:
+def emotion_charts(rows: Iterable[Mapping[str, object]], names: Mapping[str, Name]) -> list[LineChart]:
     """One chart per emotion target (human or robot), in the order targets first appear."""
     readings: dict[str, list[Mapping[str, object]]] = {}
     for row in rows:
         if row.get("time") and isinstance(row.get("intensity"), int | float) and row.get("target"):
             readings.setdefault(str(row["target"]), []).append(row)
-    return [_emotion_chart(target, target_rows) for target, target_rows in readings.items()]
+    return [_emotion_chart(target, target_rows, names.get(target)) for target, target_rows in readings.items()]
 
 
-def _emotion_chart(target: str, rows: list[Mapping[str, object]]) -> LineChart:
+def _emotion_chart(target: str, rows: list[Mapping[str, object]], name: Name | None) -> LineChart:
     first = rows[0]
-    name = str(first.get("targetName") or short_iri(target))
-    chart = LineChart(title=name, subject=target, kind=str(first.get("targetKind") or "other"))
+    name = name or Name(str(first.get("targetName") or short_iri(target)))
+    chart = LineChart(
+        title=name.label, subject=target, kind=str(first.get("targetKind") or "other"), qualifier=name.qualifier
+    )
     times = [parse_time(str(row["time"])) for row in rows]
     start, end = min(times), max(times)
     span = (end - start).total_seconds()
@@ -120,7 +125,11 @@ def _emotion_chart(target: str, rows: list[Mapping[str, object]]) -> LineChart:
     chart.y_ticks = [Tick(y_of(value), f"{value:g}") for value in (0.0, 0.25, 0.5, 0.75, 1.0)]
     moments = [start] if span == 0 else [start + (end - start) * (i / 3) for i in range(4)]
     with_date = start.date() != end.date()
-    chart.x_ticks = [Tick(x_of(moment), when(moment.isoformat(), with_date=with_date)) for moment in moments]
+    anchors = ["middle"] if span == 0 else ["start", "middle", "middle", "end"]
+    chart.x_ticks = [
+        Tick(x_of(moment), when(moment.isoformat(), with_date=with_date), anchor)
+        for moment, anchor in zip(moments, anchors, strict=True)
+    ]
     return chart
 
 
@@ -139,7 +148,7 @@ class BarChart:
 
     bars: list[Bar]
     width: int = 640
-    label_width: int = 200
+    label_width: int = 280
     bar_height: int = 22
     gap: int = 8
 
@@ -148,22 +157,24 @@ class BarChart:
         return max(1, len(self.bars)) * (self.bar_height + self.gap) + self.gap
 
 
-def model_usage_chart(rows: Iterable[Mapping[str, object]]) -> BarChart:
+def model_usage_chart(rows: Iterable[Mapping[str, object]], names: Mapping[str, Name]) -> BarChart:
+    """One bar per model IRI; models that share a label are named with the robots that used them."""
     activities: dict[str, set[str]] = {}
-    names: dict[str, str] = {}
+    labels: dict[str, str] = {}
     for row in rows:
         model = str(row.get("model") or "")
         if not model:
             continue
         activities.setdefault(model, set()).add(str(row.get("activity")))
+        name = names.get(model) or Name(str(row.get("modelName") or short_iri(model)))
         version = f" {row['version']}" if row.get("version") else ""
-        names[model] = f"{row.get('modelName') or short_iri(model)}{version}"
+        labels[model] = f"{name.label}{version}" + (f" ({name.qualifier})" if name.qualifier else "")
     chart = BarChart(bars=[])
     top = max((len(used) for used in activities.values()), default=1)
     room = chart.width - chart.label_width - 60
-    ordered = sorted(activities.items(), key=lambda item: (-len(item[1]), names[item[0]]))
+    ordered = sorted(activities.items(), key=lambda item: (-len(item[1]), labels[item[0]]))
     chart.bars = [
-        Bar(names[model], len(used), chart.gap + i * (chart.bar_height + chart.gap), room * len(used) / top, model)
+        Bar(labels[model], len(used), chart.gap + i * (chart.bar_height + chart.gap), room * len(used) / top, model)
         for i, (model, used) in enumerate(ordered)
     ]
     return chart

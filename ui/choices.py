@@ -1,9 +1,10 @@
-"""Robots and humans to pick from in filter forms, from the participants report."""
+"""Robots and humans to pick from in filter forms, from the participants report (namesakes told apart)."""
 
 from __future__ import annotations
 
 from fastapi import Request
 
+from segb_server.ui.namesakes import tell_apart
 from segb_server.ui.pages import backend, token
 
 
@@ -18,4 +19,5 @@ async def participant_choices(request: Request) -> dict[str, dict[str, str]]:
 
 
 def _by_name(choices: dict[str, str]) -> dict[str, str]:
-    return dict(sorted(choices.items(), key=lambda item: item[1].casefold()))
+    shown = {iri: str(name) for iri, name in tell_apart(choices).items()}
+    return dict(sorted(shown.items(), key=lambda item: item[1].casefold()))

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from datetime import datetime
+from datetime import UTC, datetime
 from urllib.parse import urlencode
 
 from segb_server.ui.vocabulary import current
@@ -32,6 +32,18 @@ def when(value: object, with_date: bool = True) -> str:
     return shown + (f".{moment.microsecond // 1000:03d}" if moment.microsecond else "")
 
 
+def epoch_when(seconds: object) -> str:
+    """Seconds since the epoch (a token's `exp`) → `2026-03-10 09:00:05` UTC."""
+    if isinstance(seconds, bool) or not isinstance(seconds, int | float):
+        return ""
+    return when(datetime.fromtimestamp(seconds, UTC).isoformat())
+
+
+def plural(count: object, one: str, many: str | None = None) -> str:
+    """`1 triple`, `2 triples`: the count with the word that fits it."""
+    return f"{count} {one if count == 1 else (many or one + 's')}"
+
+
 def parse_time(value: str) -> datetime:
     return datetime.fromisoformat(value.replace("Z", "+00:00"))
 
@@ -46,4 +58,11 @@ def explain_href(iri: object) -> str:
     return "/explain?" + urlencode({"iri": str(iri)})
 
 
-FILTERS = {"short_iri": short_iri, "when": when, "number": number, "explain_href": explain_href}
+FILTERS = {
+    "short_iri": short_iri,
+    "when": when,
+    "epoch_when": epoch_when,
+    "number": number,
+    "plural": plural,
+    "explain_href": explain_href,
+}

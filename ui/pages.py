@@ -9,7 +9,7 @@ from fastapi import Request
 from fastapi.responses import HTMLResponse, JSONResponse, Response
 from fastapi.templating import Jinja2Templates
 
-from segb_server.ui.api_client import BackendClient
+from segb_server.ui.api_client import BackendClient, BackendError
 from segb_server.ui.csrf import csrf_token
 from segb_server.ui.display import FILTERS
 from segb_server.ui.session import TOKEN_COOKIE, Viewer
@@ -26,6 +26,8 @@ NAVIGATION: list[tuple[str, str, tuple[str, ...] | None]] = [
     ("Query", "/query", AUDITOR),
     ("Shared context", "/shared-context", ADMIN),
     ("Ledger", "/ledger", AUDITOR),
+    ("Insert a log", "/logs/insert", ADMIN),
+    ("Clear the graph", "/logs/delete", ADMIN),
     ("Logs", "/logs", ADMIN),
     ("Health", "/health", None),
     ("Session", "/session", None),
@@ -51,7 +53,7 @@ def render(
     who = viewer(request)
     page = {
         "navigation": [(label, path) for label, path, roles in NAVIGATION if who.can(roles)],
-        "current_path": request.url.path,
+        "current_nav": current_nav(request.url.path),
         "viewer": who,
         "csrf_token": csrf_token(request),
         **(context or {}),
@@ -59,8 +61,31 @@ def render(
     return TEMPLATES.TemplateResponse(request, template, page, status_code=status_code)
 
 
+def require(request: Request, roles: tuple[str, ...]) -> None:
+    """Refuse a page the viewer's roles cannot use, as the API would: before any form is shown."""
+    who = viewer(request)
+    if who.can(roles):
+        return
+    if who.status in ("no-token", "invalid"):
+        raise BackendError(401, "Sign in with a token first.")
+    held = ", ".join(sorted(who.roles)) or "none"
+    raise BackendError(403, f"This page needs the {' or '.join(roles)} role; your token has {held}.")
+
+
+def current_nav(path: str) -> str | None:
+    """The navigation entry a page belongs to: the longest one its path starts with (/logs/insert is not
+    /logs)."""
+    owners = [href for _, href, _ in NAVIGATION if path == href or path.startswith(href + "/")]
+    return max(owners, key=len, default=None)
+
+
 def error_page(request: Request, status_code: int, title: str, message: str) -> Response:
     """An HTML error page, or `{"detail", "title", "status"}` for the page scripts' JSON requests."""
     if "application/json" in request.headers.get("accept", ""):
         return JSONResponse({"detail": message, "title": title, "status": status_code}, status_code=status_code)
-    return render(request, "error.html", {"title": title, "message": message, "status": status_code}, status_code)
+    # Where a sign-in should lead back to: the page that failed, when opening it again is harmless.
+    back = None
+    if request.method == "GET":
+        back = request.url.path + (f"?{request.url.query}" if request.url.query else "")
+    context = {"title": title, "message": message, "status": status_code, "back": back}
+    return render(request, "error.html", context, status_code)

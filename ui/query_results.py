@@ -7,8 +7,18 @@ from typing import Any
 
 from pyoxigraph import BlankNode, Literal, NamedNode, RdfFormat, parse
 
-XSD_STRING = "http://www.w3.org/2001/XMLSchema#string"
+XSD = "http://www.w3.org/2001/XMLSchema#"
+XSD_STRING = XSD + "string"
 RDF_LANG_STRING = "http://www.w3.org/1999/02/22-rdf-syntax-ns#langString"
+# Datatypes whose values read plainly (43, 0.87, true, 2026-03-10T10:00:00Z): shown as the value alone, the
+# datatype on hover. Any other datatype is part of what the value means, so it stays on screen.
+PLAIN_DATATYPES = frozenset(
+    XSD + name
+    for name in (
+        "integer", "long", "int", "short", "byte", "decimal", "double", "float", "boolean", "dateTime",
+        "dateTimeStamp", "date", "time", "nonNegativeInteger", "positiveInteger", "unsignedInt", "unsignedLong",
+    )
+)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -17,6 +27,11 @@ class Cell:
     value: str = ""
     language: str = ""
     datatype: str = ""  # only when it says something (not xsd:string or rdf:langString)
+
+    @property
+    def plain(self) -> bool:
+        """A value that reads as it is (a number, a time, a truth value); its datatype goes in a tooltip."""
+        return self.datatype in PLAIN_DATATYPES
 
 
 @dataclass(frozen=True)

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from segb_server.ui.charts import emotion_charts, model_usage_chart
+from segb_server.ui.namesakes import Name
 
 Row = Mapping[str, Any]
 
@@ -21,6 +22,8 @@ EMPTY_STATES = {
 }
 # The overview shows the reports in the order an audit reads them.
 OVERVIEW_ORDER = ["participants", "conversations", "emotion-timeline", "extreme-emotions", "ml-usage", "robot-states"]
+# What one table line stands for, where it is not one row of the report.
+UNITS = {"robot-states": ("snapshot", "snapshots"), "conversations": ("message", "messages")}
 
 
 @dataclass
@@ -80,16 +83,22 @@ def state_snapshots(rows: Iterable[Row]) -> list[Snapshot]:
     return list(snapshots.values())
 
 
-def view_of(name: str, table: Mapping[str, Any]) -> dict[str, Any]:
-    """What the section template of report `name` needs besides the raw table."""
+def view_of(name: str, table: Mapping[str, Any], names: Mapping[str, Name]) -> dict[str, Any]:
+    """What the section template of report `name` needs besides the raw table: `entries` are what its table
+    lists (rows, or one snapshot per state), `unit` what one of them is called."""
     rows = table.get("rows", [])
-    view: dict[str, Any] = {"empty_message": EMPTY_STATES.get(name, "No rows.")}
+    view: dict[str, Any] = {
+        "empty_message": EMPTY_STATES.get(name, "No rows."),
+        "names": names,
+        "entries": rows,
+        "unit": UNITS.get(name, ("row", "rows")),
+    }
     if name == "conversations":
         view["threads"] = conversation_threads(rows)
     elif name in ("emotion-timeline", "extreme-emotions"):
-        view["charts"] = emotion_charts(rows)
+        view["charts"] = emotion_charts(rows, names)
     elif name == "ml-usage":
-        view["bar_chart"] = model_usage_chart(rows)
+        view["bar_chart"] = model_usage_chart(rows, names)
     elif name == "robot-states":
-        view["snapshots"] = state_snapshots(rows)
+        view["entries"] = state_snapshots(rows)
     return view

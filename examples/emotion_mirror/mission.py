@@ -5,8 +5,8 @@ expression it detects. Every event is logged and the whole graph is published ri
 
 * a detected expression  -> emotion-recognition activity, observation, Big6 emotion annotation on the person;
 * an utterance           -> shared event, listening activity, InitialMessage from the person;
-* the reply              -> response activity using the LLM, ResponseMessage, the robot's mirrored emotion,
-                            and a robot state snapshot.
+* the reply              -> response activity (using the LLM only when the LLM wrote the reply),
+                            ResponseMessage, the robot's mirrored emotion, and a robot state snapshot.
 
 ROS is not needed: a driver (see `driver.py`) calls these three handlers with timestamps.
 """
@@ -64,7 +64,6 @@ class RobotConfig:
     llm_label: str = "llama3.2"
     llm_version: str = "3.2"
     llm_provider: str = "Ollama"
-    temperature: float = 0.7
 
 
 @dataclass
@@ -196,14 +195,8 @@ class EmotionMirrorMission:
             ended_at=at + timedelta(seconds=1),
             triggered_by_activity=self._last_recognition or exchange.listening,
             triggered_by_entity=exchange.heard,
-            model_usages=[
-                ModelUsage(
-                    model=self.models["llm"],
-                    parameters={"temperature": self.config.temperature, "reply_source": source},
-                    software_label="ollama",
-                    software_version="0.5",
-                )
-            ],
+            # As the tutorial logs it: the model is credited only for replies it wrote, never for the fallback.
+            used_models=[self.models["llm"]] if source == "ollama" else None,
         )
         said = log.log_message(
             reply,

@@ -75,6 +75,8 @@ def _run(server: str, args: argparse.Namespace, script: Script) -> None:
         shared_event_resolver=HTTPSharedContextResolver(base_url=server, token=args.token),
     )
     print(f"{'start':<24} {'robot':<10} {config.robot_name} meets {script.human_name}  {_published(last)}")
+    if last.get("triples_new") == 0:
+        print(_already_there(config.robot_name, script.human_name), file=sys.stderr, flush=True)
     for step in play(mission, script):
         source = f" [{step.reply_source}]" if step.reply_source else ""
         when = step.at.isoformat(timespec="milliseconds").replace("+00:00", "Z")
@@ -90,7 +92,18 @@ def _config(model: str) -> RobotConfig:
 
 
 def _published(response: dict[str, Any]) -> str:
-    return f"-> {response.get('triples_new', '?')} new of {response.get('triples_received', '?')} triples"
+    received = response.get("triples_received", "?")
+    return f"-> {response.get('triples_new', '?')} new of {received} {'triple' if received == 1 else 'triples'}"
+
+
+def _already_there(robot: str, human: str) -> str:
+    """The start (robot, person, models) has fixed IRIs: when none of it is new, this visit was logged before."""
+    return (
+        f"emotion_mirror: warning: the server already holds {robot}'s log with {human}. Replaying the script again "
+        "adds every emotion reading and state snapshot a second time (the client gives them new IRIs), so the "
+        "emotion timeline will show each reading twice. Clear the graph first for a clean run "
+        "(the UI's /logs/delete page, or POST /ttl/delete_all)."
+    )
 
 
 def _unreachable(server: str) -> str | None:

@@ -48,10 +48,14 @@ def test_segb_demo_fills_every_report_once(memory_api: LiveServer) -> None:
     pairs = {(row["humanName"], row["robotName"]) for row in rows(memory_api.url, "participants")}
     assert pairs == {("Maria", "ARI"), ("Maria", "TIAGo"), ("Carlos", "TIAGo")}
 
-    # ARI and TIAGo heard Maria's first utterance as one shared event.
+    # ARI and TIAGo heard Maria's first utterance as one shared event, which the server's resolver minted; the
+    # utterance TIAGo overheard late, without seeing the speaker, waits for a reviewer.
     shared = select_bindings(memory_api.url, SHARED_BY_TWO_ROBOTS)
     assert len(shared) == 1
-    assert shared[0]["event"]["value"].startswith("https://example.org/segb/shared-events/human_utterance_")
+    assert shared[0]["event"]["value"].startswith("https://gsi.upm.es/segb/shared-events/human_utterance_")
+    assert shared_context(memory_api.url) == SHARED_CONTEXTS
+
+    assert_nothing_overstated(memory_api.url)
 
     # The cases the reference reports drop: an emotion about no shared event, a state without location.
     carlos = [row for row in rows(memory_api.url, "emotion-timeline") if row["targetName"] == "Carlos"]
@@ -71,6 +75,30 @@ def test_segb_demo_fills_every_report_once(memory_api: LiveServer) -> None:
     assert triple_count(memory_api.url) == before
 
 
+# Maria's four utterances to ARI (one also heard by TIAGo) and Carlos's question: active; the overheard one:
+# ambiguous, with its review case.
+SHARED_CONTEXTS = {"active_contexts": 5, "ambiguous_contexts": 1, "merged_contexts": 0, "pending_cases": 1}
+
+
+def shared_context(url: str) -> dict[str, int]:
+    stats = httpx.get(f"{url}/shared-context/stats", timeout=30).json()
+    return {name: stats[name] for name in SHARED_CONTEXTS}
+
+
+def assert_nothing_overstated(url: str) -> None:
+    """No reply came from a language model (the demo has no Ollama), so none is credited; every emotion a
+    robot expressed about itself is told as expressed, never as analysed with a model."""
+    usage = rows(url, "ml-usage")
+    assert {row["modelName"] for row in usage} == {"Emotion Big6 CNN"}
+    expressed = [row for row in rows(url, "emotion-timeline") if row["targetKind"] == "robot"]
+    assert len(expressed) == 5  # ARI's four replies, TIAGo's one
+    for row in expressed:
+        story = httpx.get(f"{url}/explain", params={"iri": row["activity"]}, timeout=30).json()
+        seed = next(step for step in story["steps"] if step["role"] == "seed")
+        assert f"{row['robotName']} expressed {row['category']} 0.7" in seed["sentence"]
+        assert "analysed" not in seed["sentence"]
+
+
 def test_segb_demo_says_when_no_server_answers() -> None:
     server = f"http://127.0.0.1:{free_port()}"
     result = segb("demo", "--server", server)
@@ -85,11 +113,14 @@ def test_serve_demo_loads_the_dataset_into_an_empty_store_only(tmp_path: Path) -
     assert first.ledger == 1  # the load has its receipt, like any post
     assert all(name in first.page for name in ("Maria", "Carlos", "ARI", "TIAGo"))  # the UI's /reports is full
 
+    assert first.shared_contexts == SHARED_CONTEXTS  # the resolver's state was filled along with the store
+
     second = serve_demo(tmp_path)
     assert "demo dataset not loaded: the store already holds" in second.log
     assert second.triples == first.triples
     assert second.participants == first.participants
     assert second.ledger == 1
+    assert second.shared_contexts == SHARED_CONTEXTS
 
 
 @dataclass(frozen=True)
@@ -99,6 +130,7 @@ class Served:
     participants: list[dict[str, Any]]
     ledger: int  # receipts
     page: str  # the UI's /reports page
+    shared_contexts: dict[str, int]
 
 
 def serve_demo(data_dir: Path) -> Served:
@@ -118,8 +150,10 @@ def serve_demo(data_dir: Path) -> Served:
         triples = triple_count(api)
         ledger = httpx.get(f"{api}/ledger", timeout=30).json()["total"]
         page = wait_for(f"http://127.0.0.1:{ui_port}/reports").text
+        contexts = shared_context(api)
+        assert_nothing_overstated(api)
     finally:
         process.send_signal(signal.SIGTERM)
         log, _ = process.communicate(timeout=30)
     assert process.returncode == 0, log
-    return Served(log, triples, participants, ledger, page)
+    return Served(log, triples, participants, ledger, page, contexts)

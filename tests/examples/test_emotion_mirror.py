@@ -6,14 +6,16 @@ import json
 import re
 import subprocess
 import sys
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import Any
 
 import httpx
 import pytest
+from semantic_log_generator import SEGBPublisher
 
 from segb_server.examples.emotion_mirror import run
-from segb_server.examples.emotion_mirror.mission import FALLBACK_REPLY
+from segb_server.examples.emotion_mirror.mission import FALLBACK_REPLY, EmotionMirrorMission, RobotConfig
 from segb_server.examples.emotion_mirror.script import Expression, Utterance, default_script
 from tests.support.live_server import LiveServer
 from tests.support.net import free_port
@@ -21,14 +23,10 @@ from tests.support.sparql import select_bindings
 
 ROOT = Path(__file__).resolve().parents[2]
 SAMPLE_SCRIPT = ROOT / "examples" / "emotion_mirror" / "sample_script.json"
-REPLY_SOURCES = """
-PREFIX mls: <http://www.w3.org/ns/mls#>
+RESPONSE_LABELS = """
+PREFIX oro: <http://kb.openrobots.org#>
 PREFIX rdfs: <http://www.w3.org/2000/01/rdf-schema#>
-SELECT ?activity ?source WHERE {
-  ?activity mls:hasInput ?setting .
-  ?setting mls:specifiedBy ?parameter ; mls:hasValue ?source .
-  ?parameter rdfs:label "reply_source"@en .
-}
+SELECT ?label WHERE { ?activity a oro:ResponseAction ; rdfs:label ?label } ORDER BY ?activity
 """
 
 
@@ -62,13 +60,11 @@ def test_the_default_script_fills_the_four_tutorial_reports(
     assert participants[0]["robot"].endswith("/robot_mirror")
     assert participants[0]["interactions"] == 12  # 4 recognitions, 4 listenings, 4 responses
 
+    # Every reply came from the fallback: the language model wrote none of them and is credited with none.
     usage = report(memory_api, "ml-usage")
     models = {(row["activityKind"], row["modelName"], row["version"], row["provider"]) for row in usage}
-    assert models == {
-        ("emotion-recognition", "Emotion Big6 CNN", "1.0", "GSI-UPM"),
-        ("response", "llama3.2", "3.2", "Ollama"),
-    }
-    assert len(usage) == 8
+    assert models == {("emotion-recognition", "Emotion Big6 CNN", "1.0", "GSI-UPM")}
+    assert len(usage) == 4
 
     timeline = report(memory_api, "emotion-timeline")
     read = [row for row in timeline if row["targetKind"] == "human"]
@@ -87,14 +83,17 @@ def test_the_default_script_fills_the_four_tutorial_reports(
     assert {(row["humanName"], row["robotName"]) for row in conversation} == {("Maria", "Emotion Mirror")}
     assert [row["time"] for row in conversation] == sorted(row["time"] for row in conversation)
 
-    # Where each reply came from is logged as the `reply_source` parameter of the response activity.
-    sources = select_bindings(memory_api.url, REPLY_SOURCES)
-    responses = {row["activity"] for row in usage if row["activityKind"] == "response"}
-    assert {binding["activity"]["value"] for binding in sources} == responses
-    assert [binding["source"]["value"] for binding in sources] == ["fallback"] * 4
-    assert {row["activityName"] for row in usage if row["activityKind"] == "response"} == {
-        "Reply to the user (fallback)"
-    }
+    # Where each reply came from is in the response activity's label.
+    replies = select_bindings(memory_api.url, RESPONSE_LABELS)
+    assert [binding["label"]["value"] for binding in replies] == ["Reply to the user (fallback)"] * 4
+
+    # The robot's mirrored emotion is told as expressed, never as analysed with a model.
+    for row in timeline:
+        if row["targetKind"] == "robot":
+            story = httpx.get(f"{memory_api.url}/explain", params={"iri": row["activity"]}, timeout=30).json()
+            seed = next(step for step in story["steps"] if step["role"] == "seed")
+            assert f"Emotion Mirror expressed {row['category']} 0.7" in seed["sentence"]
+            assert "analysed" not in seed["sentence"] and "llama" not in seed["sentence"]
 
     # Each utterance's shared event was minted by the server's resolver, not by the client's local fallback.
     stats = httpx.get(f"{memory_api.url}/shared-context/stats", timeout=10).json()
@@ -155,3 +154,39 @@ def test_an_unreachable_server_fails_with_a_clear_message() -> None:
     assert f"cannot reach the SEGB server at {server}" in result.stderr
     assert "segb serve" in result.stderr
     assert result.stdout == ""
+
+
+def test_the_language_model_is_credited_only_for_the_replies_it_wrote(memory_api: LiveServer) -> None:
+    """As the tutorial logs it: `used_models=[chat_model] if reply_source == "ollama" else None`."""
+    answers = iter([("Congratulations!", "ollama"), (FALLBACK_REPLY, "fallback")])
+    publisher = SEGBPublisher(base_url=memory_api.url)
+    mission = EmotionMirrorMission.start(
+        RobotConfig(),
+        human_id="maria",
+        human_name="Maria",
+        replier=lambda text: next(answers),
+        publish=lambda logger: logger.publish(publisher),
+    )
+    at = datetime(2026, 3, 10, 10, 0, tzinfo=UTC)
+    for turn, text in enumerate(["I passed!", "Thanks."]):
+        mission.respond(
+            mission.on_user_utterance(text, at + timedelta(seconds=10 * turn)), at + timedelta(seconds=10 * turn + 2)
+        )
+
+    usage = report(memory_api, "ml-usage")
+    assert [(row["modelName"], row["activityName"]) for row in usage] == [("llama3.2", "Reply to the user (ollama)")]
+    replies = report(memory_api, "conversations")
+    generated = next(row for row in replies if row["text"] == "Congratulations!")
+    story = httpx.get(f"{memory_api.url}/explain", params={"iri": generated["message"]}, timeout=30).json()
+    seed = next(step for step in story["steps"] if step["role"] == "seed")
+    assert seed["sentence"] == "Emotion Mirror said “Congratulations!” with llama3.2 3.2"
+
+
+def test_running_the_script_again_is_warned_about(memory_api: LiveServer, capsys: pytest.CaptureFixture[str]) -> None:
+    assert drive(memory_api) == 0
+    assert "warning" not in capsys.readouterr().err
+    assert drive(memory_api) == 0
+    printed = capsys.readouterr()
+    assert "-> 0 new of 29 triples" in printed.out.splitlines()[0]
+    assert "emotion_mirror: warning: the server already holds Emotion Mirror's log with Maria" in printed.err
+    assert "emotion timeline will show each reading twice" in printed.err

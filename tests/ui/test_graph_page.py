@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from typing import Any
 
 import httpx
 import pytest
@@ -113,7 +114,15 @@ def test_explain_links_from_reports_lead_to_the_story(ui_stack: UiStack, page) -
     assert page.console_errors == []
 
 
-@pytest.mark.parametrize("interactions", [24, 116])
+def test_explain_tells_a_robots_own_emotion_as_expressed(ui_stack: UiStack, page: Any) -> None:
+    scenario = lobby()
+    scenario.publish_all(ui_stack.api_url)
+    page.goto(f"{ui_stack.ui_url}/explain?" + str(httpx.QueryParams({"iri": str(scenario.iris["express_ari_1"])})))
+    assert page.locator(".story-step.role-seed .story-sentence").inner_text() == "ARI expressed happiness 0.6"
+    assert page.console_errors == []
+
+
+@pytest.mark.parametrize("interactions", [25, 125])
 def test_graph_page_stays_interactive_with_thousands_of_nodes(ui_stack: UiStack, page, interactions: int) -> None:  # type: ignore[no-untyped-def]
     """Two robots' logs made by the real client (about 1,000 and 5,000 nodes); time to first interactive render
     is recorded in test-artifacts/graph-timings.txt."""
@@ -133,3 +142,54 @@ def test_graph_page_stays_interactive_with_thousands_of_nodes(ui_stack: UiStack,
     with (ARTIFACTS / "graph-timings.txt").open("a") as log:
         log.write(f"{figures}\n")
     assert page.console_errors == []
+
+
+def test_graph_reads_at_first_sight(demo_stack_graph: tuple[UiStack, dict], page: Any) -> None:
+    """Named lanes; robots, humans and messages labelled at the starting zoom, the other kinds not; "other"
+    nodes folded behind a toggle."""
+    stack, api_graph = demo_stack_graph
+    open_graph(page, f"{stack.ui_url}/kg-graph")
+    lanes = [lane for lane in page.locator("#graph-lanes li").all() if lane.is_visible()]
+    assert [lane.inner_text() for lane in lanes][:3] == ["ROBOTS", "HUMANS", "SHARED EVENTS"]  # upper-cased by CSS
+
+    shown = page.evaluate("window.segbGraph.labelsShown()")
+    kinds = {label.split(": ", 1)[0] for label in shown}
+    assert {"robot", "human", "message"} <= kinds
+    assert kinds <= {"robot", "human", "message"}  # activities, emotions… wait for hover, focus or zoom
+    assert "robot: ARI" in shown and "human: Maria (ari/v1/human_maria)" in shown
+
+    others = sum(1 for node in api_graph["nodes"] if node["kind"] == "other")
+    stats = page.locator("#graph-stats")
+    assert others > 50 and stats.get_attribute("data-folded") == str(others)
+    assert f"{others} other nodes folded" in stats.inner_text()
+    page.check("#graph-show-other")
+    assert stats.get_attribute("data-folded") == "0"
+    assert page.locator("#graph-lanes li.lane-other").count() == 1
+    page.click("#graph-fit")
+    page.wait_for_timeout(200)
+    assert page.locator("#graph-lanes li.lane-other").is_visible()
+    assert page.console_errors == []
+
+
+def test_node_details_tell_vocabularies_apart_and_keep_the_iri_inside(
+    demo_stack_graph: tuple[UiStack, dict], page: Any
+) -> None:
+    stack, _ = demo_stack_graph
+    open_graph(page, f"{stack.ui_url}/kg-graph")
+    page.fill("#graph-search-input", "Carlos")
+    page.click("#graph-search button")
+    page.wait_for_selector("#graph-panel[data-iri$='human_carlos']")
+    persons = page.locator("#graph-panel tr", has_text="rdf:type").filter(has_text="Person")
+    assert sorted(row.locator(".vocabulary").inner_text().strip() for row in persons.all()) == [
+        "foaf:Person",
+        "prov:Person",
+    ]
+    iri = page.locator("#graph-panel .panel-iri")
+    assert iri.evaluate("p => p.scrollWidth <= p.clientWidth")
+    box, panel = iri.bounding_box(), page.locator("#graph-panel").bounding_box()
+    assert box["x"] + box["width"] <= panel["x"] + panel["width"]
+
+
+@pytest.fixture(scope="module")
+def demo_stack_graph(demo_stack: UiStack) -> tuple[UiStack, dict]:
+    return demo_stack, httpx.get(f"{demo_stack.api_url}/graph", params={"limit": 1500}, timeout=30).json()

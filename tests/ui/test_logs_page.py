@@ -28,10 +28,11 @@ def test_logs_page_lists_requests_and_filters_them(ui_stack: UiStack, page) -> N
     levels = set(rows.evaluate_all("rows => rows.map(r => r.dataset.level)"))
     assert levels == {"INFO", "WARNING"}
     probe = page.locator("#server-log tbody tr", has_text="probe-2")
-    assert probe.locator("td").nth(5).inner_text() == "GET /healthz/live"
-    assert probe.locator("td").nth(6).inner_text() == "200"
+    assert probe.locator("td.log-route").inner_text() == "GET /healthz/live"
+    assert probe.locator("td").nth(5).inner_text() == "200"
+    assert "segb.requests" in probe.locator("td.log-level").inner_text()  # the logger, under the level
     hostile = page.locator("#server-log tbody tr", has_text="xss")
-    assert hostile.locator("td").nth(5).inner_text() == f"GET {HOSTILE_PATH}"
+    assert hostile.locator("td.log-route").inner_text() == f"GET {HOSTILE_PATH}"
     assert page.evaluate("window.__pwned") is None
 
     page.select_option("select[name=level]", "WARNING")
@@ -47,7 +48,7 @@ def test_logs_page_lists_requests_and_filters_them(ui_stack: UiStack, page) -> N
     page.fill("input[name=limit]", "2")
     page.click("#log-filters button[type=submit]")
     page.wait_for_load_state()
-    shown = page.locator("#server-log tbody tr td:nth-child(4)").all_inner_texts()
+    shown = page.locator("#server-log tbody tr code.request-id").all_inner_texts()
     assert shown == ["probe-2", "probe-1"]
     assert page.locator("input[name=contains]").input_value() == "PROBE-"
     assert page.console_errors == []

@@ -7,6 +7,7 @@ from __future__ import annotations
 import csv
 import io
 from pathlib import Path
+from typing import Any
 
 import httpx
 import pytest
@@ -113,4 +114,40 @@ def test_robot_text_in_results_stays_text_and_the_csv_download_holds_it(ui_stack
     assert download.suggested_filename == "query.csv"
     rows = list(csv.reader(io.StringIO(Path(download.path()).read_text(encoding="utf-8"))))
     assert rows == [["human", "name"], ["https://example.org/eve", HOSTILE]]
+    assert page.console_errors == []
+
+
+def test_the_example_menu_keeps_its_choice_after_a_run(ui_stack: UiStack, page: Any) -> None:
+    lobby().publish_all(ui_stack.api_url)
+    page.goto(f"{ui_stack.ui_url}/query")
+    first = page.locator("#example-menu option").first.get_attribute("value")
+    page.select_option("#example-menu", "reports/robot-states")
+    page.click("#example-load")  # through the server, as without JavaScript
+    page.wait_for_load_state()
+    page.click("#query-run")
+    page.wait_for_load_state()
+    assert page.locator("#query-results tbody tr").count() > 0
+    assert page.locator("#example-menu").input_value() == "reports/robot-states" != first
+
+    page.select_option("#example-menu", "reports/participants")  # through the page's script
+    page.click("#query-run")
+    page.wait_for_load_state()
+    assert page.locator("#example-menu").input_value() == "reports/participants"
+    assert page.console_errors == []
+
+
+def test_numbers_and_times_show_as_values_with_their_datatype_on_hover(ui_stack: UiStack, page: Any) -> None:
+    lobby().publish_all(ui_stack.api_url)
+    run(
+        page,
+        ui_stack.ui_url,
+        "PREFIX prov: <http://www.w3.org/ns/prov#>\n"
+        "SELECT ?triples ?first WHERE { { SELECT (COUNT(*) AS ?triples) WHERE { ?s ?p ?o } }\n"
+        "  { SELECT (MIN(?t) AS ?first) WHERE { ?activity prov:startedAtTime ?t } } }",
+    )
+    count, first = page.locator("#query-results tbody td").all()
+    assert count.inner_text().isdigit() and "^^" not in count.inner_text()
+    assert count.locator(".literal").get_attribute("title") == "xsd:integer"
+    assert first.inner_text() == "2026-03-09T09:00:00Z"
+    assert first.locator(".literal").get_attribute("title") == "xsd:dateTime"
     assert page.console_errors == []

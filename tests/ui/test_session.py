@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import time
 from collections.abc import Iterator
+from typing import Any
 
 import httpx
 import pytest
@@ -72,3 +74,47 @@ def test_with_auth_off_the_page_says_so(ui_stack: UiStack) -> None:
     answer = httpx.get(f"{ui_stack.ui_url}/session")
     assert "Authentication off" in answer.text
     assert 'name="token"' not in answer.text
+
+
+def test_the_session_shows_what_the_token_grants(secured_stack: UiStack, page: Any) -> None:
+    minted = mint_token(SECRET, username="ops", roles=["admin"], expires_in=600, scopes=["https://example.org/ari/"])
+    page.goto(f"{secured_stack.ui_url}/session")
+    page.fill("#token", minted.token)
+    page.click("text=Save token")
+    assert page.locator("#session-user").inner_text() == "ops"
+    assert page.locator("#session-token-roles").inner_text().split() == ["admin"]
+    assert set(page.locator("#session-roles").inner_text().split()) == {"admin", "auditor", "logger"}
+    assert page.locator("#session-scopes").inner_text() == "https://example.org/ari/"
+    expires = time.strftime("%Y-%m-%d %H:%M:%S", time.gmtime(minted.expires_at))
+    assert page.locator("#session-expires").inner_text() == expires
+
+
+def test_a_page_needing_a_token_says_how_to_get_one_and_signing_in_leads_back(
+    secured_stack: UiStack, page: Any
+) -> None:
+    answer = page.goto(f"{secured_stack.ui_url}/reports/participants?limit=5")
+    assert answer is not None and answer.status == 401
+    main = page.locator("main").inner_text()
+    assert "this browser has no token yet" in main
+    assert "segb token --username NAME --role auditor" in main
+    assert "Authorization header is required" not in page.locator(".banner").inner_text()
+
+    page.click("#sign-in-help a")
+    assert "The page you opened needs a token" in page.locator(".banner-info").inner_text()
+    page.fill("#token", token_for("auditor"))
+    page.click("text=Save token")
+    page.wait_for_load_state()
+    assert page.url == f"{secured_stack.ui_url}/reports/participants?limit=5"
+    assert page.locator("h1").inner_text() == "Participants"
+
+
+def test_signing_in_never_leads_off_the_site(secured_stack: UiStack) -> None:
+    with httpx.Client(base_url=secured_stack.ui_url) as client:
+        client.get("/session")
+        csrf = client.cookies["segb_csrf"]
+        for elsewhere in ("https://evil.example/", "//evil.example/", "/\\evil.example"):
+            answer = client.post(
+                "/session", data={"token": token_for("auditor"), "csrf_token": csrf, "next": elsewhere}
+            )
+            assert answer.status_code == 303
+            assert answer.headers["location"] == "/session?notice=saved"

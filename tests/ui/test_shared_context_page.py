@@ -111,3 +111,20 @@ def test_only_admins_reach_the_review_page(secured_stack: UiStack, page) -> None
     page.goto(f"{secured_stack.ui_url}/shared-context")
     assert page.locator(".review").count() == 1
     assert "via ari" in page.locator(".context-source").inner_text()
+
+
+def test_the_demo_gives_the_page_contexts_and_a_case_to_review(demo_stack: UiStack, open_at: Any) -> None:
+    """The demo's robots resolve their utterances with the server, so the page counts what the graph shows,
+    and the two robots' `human_maria` subjects are told apart."""
+    stats = httpx.get(f"{demo_stack.api_url}/shared-context/stats", timeout=10).json()
+    assert stats["active_contexts"] >= 5 and stats["ambiguous_contexts"] >= 1 and stats["pending_cases"] >= 1
+    page = open_at("desktop")
+    page.goto(f"{demo_stack.ui_url}/shared-context")
+    shown = page.locator("#shared-context-stats").inner_text()
+    assert shown.startswith(f"{stats['active_contexts']} active · {stats['ambiguous_contexts']} ambiguous")
+    assert page.locator(".review").count() == stats["pending_cases"]
+    # TIAGo overheard Maria without seeing who spoke: a context without subject, beside ARI's.
+    sources = page.locator(".context-source dl").all_inner_texts()
+    assert sum("Subject\nnone\n" in source for source in sources) == 1
+    subjects = page.locator(".context dd .entity").all_inner_texts()
+    assert "human_maria (ari/v1/human_maria)" in subjects and "human_maria (mirror/v1/human_maria)" in subjects

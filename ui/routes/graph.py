@@ -7,10 +7,13 @@ in an HttpOnly cookie.
 
 from __future__ import annotations
 
+from typing import Any
+
 from fastapi import APIRouter, Request
-from fastapi.responses import HTMLResponse, Response
+from fastapi.responses import HTMLResponse, JSONResponse, Response
 
 from segb_server.ui.choices import participant_choices
+from segb_server.ui.namesakes import tell_apart
 from segb_server.ui.pages import backend, render, token
 from segb_server.ui.query_params import query_values
 from segb_server.ui.vocabulary import current
@@ -18,6 +21,7 @@ from segb_server.ui.vocabulary import current
 router = APIRouter()
 
 GRAPH_PARAMETERS = ("limit", "robot", "since", "until", "types", "focus", "depth", "q")
+NAMED_KINDS = ("robot", "human", "model")  # kinds whose namesakes are told apart in the drawing
 
 
 def graph_parameters(request: Request) -> dict[str, str]:
@@ -40,6 +44,7 @@ async def graph_page(request: Request) -> HTMLResponse:
             "chosen_kinds": set(request.query_params.getlist("kind")),
             "choices": choices,
             "kinds": current().kinds,
+            "prefixes": current().prefixes,
             "data_src": "/kg-graph/data" + (f"?{data_query}" if data_query else ""),
         },
     )
@@ -53,7 +58,18 @@ async def _relay_json(request: Request, path: str, params: dict[str, str]) -> Re
 
 @router.get("/kg-graph/data")
 async def graph_data(request: Request) -> Response:
-    return await _relay_json(request, "/graph", graph_parameters(request))
+    answer = await backend(request).get_json("/graph", token=token(request), params=graph_parameters(request))
+    return JSONResponse(with_namesakes_told_apart(answer))
+
+
+def with_namesakes_told_apart(graph: dict[str, Any]) -> dict[str, Any]:
+    """Two robots called the same, two people called Maria, one model name registered by several robots: their
+    labels get what tells them apart. Other kinds (messages saying the same words) keep their text."""
+    people = [node for node in graph["nodes"] if node.get("kind") in NAMED_KINDS]
+    names = tell_apart({node["id"]: str(node.get("label") or node["id"]) for node in people})
+    for node in people:
+        node["label"] = str(names[node["id"]])
+    return graph
 
 
 @router.get("/kg-graph/resource")

@@ -31,7 +31,11 @@ async def query_page(request: Request) -> HTMLResponse:
     offered = await client.get_json("/sparql/examples", token=user_token)
     examples = offered["examples"]
     text = request.query_params.get("query", "")
-    chosen = next((e for e in examples if e["name"] == request.query_params.get("example")), None)
+    asked = request.query_params.get("example")
+    # The example the editor's text came from: the one named, else the one whose text it still is.
+    chosen = next((e for e in examples if e["name"] == asked), None) or next(
+        (e for e in examples if text.strip() and e["query"].strip() == text.strip()), None
+    )
     context: dict[str, Any] = {"examples": examples, "example": chosen["name"] if chosen else ""}
     if text.strip():
         context.update(await _run(client, user_token, text))

@@ -10,13 +10,15 @@ from fastapi.responses import HTMLResponse, Response
 
 from segb_server.ui.api_client import BackendError
 from segb_server.ui.choices import participant_choices
+from segb_server.ui.namesakes import Name, entity_names
 from segb_server.ui.pages import backend, render, token
 from segb_server.ui.query_params import query_values
 from segb_server.ui.report_views import OVERVIEW_ORDER, view_of
 
 router = APIRouter()
 
-OVERVIEW_ROWS = 200
+OVERVIEW_ROWS = 200  # fetched per report: charts and conversations draw them all
+OVERVIEW_TABLE_ITEMS = 10  # listed per table on the overview; each report's own page lists every row it has
 PAGE_ROWS = 500
 _catalog: dict[str, dict[str, Any]] = {}
 
@@ -53,8 +55,8 @@ def _paging(request: Request, default_limit: int, max_limit: int) -> tuple[int, 
     return max(1, min(whole("limit", default_limit), max_limit)), whole("offset", 0)
 
 
-def _section(name: str, table: dict[str, Any], described: dict[str, Any]) -> dict[str, Any]:
-    return {"name": name, "info": described, "table": table, **view_of(name, table)}
+def _section(name: str, table: dict[str, Any], described: dict[str, Any], names: dict[str, Name]) -> dict[str, Any]:
+    return {"name": name, "info": described, "table": table, **view_of(name, table, names)}
 
 
 def _supported(filters: dict[str, str], described: dict[str, Any]) -> dict[str, str]:
@@ -75,12 +77,15 @@ async def reports_overview(request: Request) -> HTMLResponse:
         return await client.get_json(f"/reports/{name}", token=user_token, params=params)
 
     choices, *tables = await asyncio.gather(participant_choices(request), *(fetch(name) for name in names))
-    sections = [_section(name, table, described[name]) for name, table in zip(names, tables, strict=True)]
+    # One name per entity on the whole page: a namesake carries the same qualifier in every report.
+    shown = entity_names(table["rows"] for table in tables)
+    sections = [_section(name, table, described[name], shown) for name, table in zip(names, tables, strict=True)]
     return render(
         request,
         "reports.html",
         {
             "sections": sections,
+            "preview": OVERVIEW_TABLE_ITEMS,
             "parameters": parameters,
             "filters": filters,
             "choices": choices,
@@ -105,7 +110,7 @@ async def one_report(request: Request, name: str) -> HTMLResponse:
         request,
         "report.html",
         {
-            "report": _section(name, table, described),
+            "report": _section(name, table, described, entity_names([table["rows"]])),
             "parameters": described["parameters"],
             "filters": filters,
             "choices": choices,

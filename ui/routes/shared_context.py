@@ -9,7 +9,9 @@ from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse, RedirectResponse, Response
 
 from segb_server.ui.csrf import check_csrf
+from segb_server.ui.display import short_iri
 from segb_server.ui.forms import read_form
+from segb_server.ui.namesakes import tell_apart
 from segb_server.ui.pages import backend, render, token
 
 router = APIRouter()
@@ -30,6 +32,11 @@ async def review_page(request: Request, notice: str | None = None) -> HTMLRespon
     )
     contexts = {context["uri"]: context for context in queue["contexts"]}
     in_review = {case["source_context_uri"] for case in queue["pending_cases"]}
+    # Subjects and robots are shown by IRI tail: two robots' `human_maria` must not look like one person.
+    shown = {context.get("subject_uri") for context in contexts.values()} | {
+        observation.get("robot_uri") for context in contexts.values() for observation in context["observations"]
+    }
+    names = tell_apart({iri: short_iri(iri) for iri in shown if iri})
     return render(
         request,
         "shared-context.html",
@@ -38,6 +45,7 @@ async def review_page(request: Request, notice: str | None = None) -> HTMLRespon
             "stats": stats,
             "cases": queue["pending_cases"],
             "contexts": contexts,
+            "names": names,
             "waiting": [context for context in queue["unresolved_contexts"] if context["uri"] not in in_review],
         },
     )

@@ -1,6 +1,11 @@
 /* Knowledge-graph explorer: draws /kg-graph/data with cytoscape.js (vendored), opens node details from
  * /kg-graph/resource, merges neighbourhoods on demand. Every text from the graph is set with textContent:
- * robot-supplied strings never become markup. */
+ * robot-supplied strings never become markup.
+ *
+ * Readable at first sight: lanes carry their names, robots, humans and messages carry labels at the
+ * starting zoom (the others on hover, keyboard focus or when zoomed in), "other" nodes (property values,
+ * observations, parameters) are folded away behind a toggle, and the drawing starts at a zoom where
+ * labels can be read. The drawing takes keyboard focus: arrows move between nodes, Enter opens one. */
 (function () {
   "use strict";
 
@@ -10,8 +15,18 @@
   };
   // Lanes from top to bottom; within a lane, time runs left to right.
   var LANES = ["robot", "human", "shared-event", "activity", "message", "emotion", "state", "model", "other"];
-  var LANE_HEIGHT = 170, SUB_ROW = 34, SUB_ROWS = 4, STEP = 42;
+  var LANE_NAMES = {
+    robot: "Robots", human: "Humans", "shared-event": "Shared events", activity: "Activities", message: "Messages",
+    emotion: "Emotions", state: "States", model: "Models", other: "Other"
+  };
+  var LANE_HEIGHT = 140, SUB_ROW = 30, SUB_ROWS = 3, STEP = 42;
+  // Room a labelled node needs in its row before the next one (model units); others need one time step.
+  var GAP = { robot: 170, human: 170, message: 170 };
+  // Robots and humans stand side by side where their lanes begin; other lanes stack crowded nodes.
+  var ROWS = { robot: 1, human: 1 };
+  var READABLE_ZOOM = 0.75; // below this the labels of robots, humans and messages are too small to read
   var LARGE = 400; // above this many nodes, drawing favours speed over detail (straight edges, no edge labels)
+  var ARROWS = { ArrowRight: [1, 0], ArrowLeft: [-1, 0], ArrowDown: [0, 1], ArrowUp: [0, -1] };
 
   var container = document.getElementById("graph");
   // WebGL drawing (cytoscape 3.31+) is opt-in: software GL in headless or GPU-less browsers is slower than canvas.
@@ -19,9 +34,21 @@
   var panel = document.getElementById("graph-panel");
   var stats = document.getElementById("graph-stats");
   var errorBox = document.getElementById("graph-error");
+  var lanesBox = document.getElementById("graph-lanes");
+  var showOther = document.getElementById("graph-show-other");
+  var otherCount = document.getElementById("graph-other-count");
+  var announce = document.getElementById("graph-announce");
+  var list = document.getElementById("graph-list");
+  var listBody = document.getElementById("graph-list-body");
+  var prefixes = JSON.parse(container.dataset.prefixes || "{}");
   var started = performance.now();
+  var fetchedAt = 0;
   var cy = null;
   var truncated = false;
+  var focused = null;
+  var laneItems = {};
+  var lanesInUse = {};
+  var viewNote = "";
 
   function fetchJson(url) {
     return fetch(url, { credentials: "same-origin", headers: { Accept: "application/json" } }).then(function (r) {
@@ -45,21 +72,46 @@
     return node;
   }
 
-  /* Positions: timed nodes by time rank; untimed nodes at the mean of their placed neighbours; then each
-   * lane spreads its nodes over a few sub-rows so they do not overlap. Linear in nodes and edges. */
+  /* `prefix:local` for an IRI in a known vocabulary, else the IRI. */
+  function compact(iri) {
+    var text = String(iri);
+    var names = Object.keys(prefixes);
+    for (var i = 0; i < names.length; i++) {
+      var namespace = prefixes[names[i]];
+      if (text.indexOf(namespace) === 0 && text.length > namespace.length) {
+        return names[i] + ":" + text.slice(namespace.length);
+      }
+    }
+    return text;
+  }
+
+  /* Positions: timed nodes by the rank of their time among the distinct times (nodes of one moment share a
+   * column); robots and humans at the left, where their lanes begin; other untimed nodes at the mean of
+   * their placed neighbours; then each lane spreads its nodes over a few sub-rows so that neither nodes nor
+   * labels overlap. Linear in nodes and edges (plus sorting the times). */
   function layout(nodes, edges, anchor) {
     var x = {}, adjacency = {};
     edges.forEach(function (e) {
       (adjacency[e.source] = adjacency[e.source] || []).push(e.target);
       (adjacency[e.target] = adjacency[e.target] || []).push(e.source);
     });
-    var timed = nodes.filter(function (n) { return n.time; });
-    timed.sort(function (a, b) { return a.time < b.time ? -1 : a.time > b.time ? 1 : 0; });
+    var times = {};
+    nodes.forEach(function (n) { if (n.time) { times[n.time] = true; } });
+    var rank = {};
+    Object.keys(times).sort().forEach(function (time, i) { rank[time] = i; });
     var offset = anchor ? anchor.x : 0;
-    timed.forEach(function (n, i) { x[n.id] = offset + i * STEP; });
+    nodes.forEach(function (n) { if (n.time) { x[n.id] = offset + rank[n.time] * STEP; } });
+    var standing = {}, placed = {};
+    nodes.forEach(function (n) { if (!anchor && !n.time && ROWS[n.kind]) { standing[n.kind] = (standing[n.kind] || 0) + 1; } });
+    nodes.forEach(function (n) {
+      if (!anchor && !n.time && ROWS[n.kind]) {
+        placed[n.kind] = (placed[n.kind] || 0) + 1;
+        x[n.id] = offset - STEP - (standing[n.kind] - placed[n.kind] + 1) * GAP[n.kind];
+      }
+    });
     for (var pass = 0; pass < 2; pass++) {
       nodes.forEach(function (n) {
-        if (n.time) { return; }
+        if (x[n.id] !== undefined) { return; }
         var xs = (adjacency[n.id] || []).map(function (m) { return x[m]; }).filter(function (v) { return v !== undefined; });
         if (xs.length) { x[n.id] = xs.reduce(function (a, b) { return a + b; }, 0) / xs.length; }
       });
@@ -70,16 +122,17 @@
     var positions = {};
     Object.keys(byLane).forEach(function (kind) {
       var lane = Math.max(0, LANES.indexOf(kind));
+      var gap = GAP[kind] || STEP, rows = ROWS[kind] || SUB_ROWS;
       var lastX = [];
-      for (var r = 0; r < SUB_ROWS; r++) { lastX.push(-Infinity); }
+      for (var r = 0; r < rows; r++) { lastX.push(-Infinity); }
       byLane[kind].sort(function (a, b) { return x[a.id] - x[b.id]; });
       byLane[kind].forEach(function (n) {
         var want = x[n.id], row = 0, best = 0;
-        for (row = 0; row < SUB_ROWS; row++) {
-          if (want - lastX[row] >= STEP) { break; }
+        for (row = 0; row < rows; row++) {
+          if (want - lastX[row] >= gap) { break; }
           if (lastX[row] < lastX[best]) { best = row; }
         }
-        if (row === SUB_ROWS) { row = best; want = lastX[best] + STEP; }
+        if (row === rows) { row = best; want = lastX[best] + gap; }
         lastX[row] = want;
         positions[n.id] = { x: want, y: lane * LANE_HEIGHT + row * SUB_ROW };
       });
@@ -87,14 +140,14 @@
     return positions;
   }
 
-  function elementsOf(data, positions) {
-    var nodes = data.nodes.map(function (n) {
-      return { group: "nodes", data: { id: n.id, label: n.label, kind: n.kind, time: n.time || "" }, position: positions[n.id] };
-    });
-    var edges = data.edges.map(function (e) {
-      return { group: "edges", data: { id: e.id, source: e.source, target: e.target, label: e.label } };
-    });
-    return nodes.concat(edges);
+  function nodeElement(n, position) {
+    var node = { group: "nodes", data: { id: n.id, label: n.label, kind: n.kind, time: n.time || "" }, position: position };
+    if (n.kind === "other" && !showOther.checked) { node.classes = "folded"; }
+    return node;
+  }
+
+  function edgeElement(e) {
+    return { group: "edges", data: { id: e.id, source: e.source, target: e.target, label: e.label } };
   }
 
   function style(large) {
@@ -102,19 +155,31 @@
     var byKind = Object.keys(KIND_COLOURS).map(function (kind) {
       return { selector: "node[kind = '" + kind + "']", style: { "background-color": KIND_COLOURS[kind] } };
     });
+    // Always-labelled kinds write their label to the right of the node, in the room GAP leaves.
+    var labelled = { "min-zoomed-font-size": 7, "text-background-color": "#ffffff", "text-background-opacity": 0.8,
+      "text-background-padding": 1, "text-halign": "right", "text-valign": "center", "text-margin-x": 4,
+      "text-margin-y": 0, "text-max-width": 140 };
     return [
+      // Unlabelled at the starting zoom: a label appears once it is drawn at 14 px (zoom about 1.3).
       { selector: "node", style: {
         "background-color": KIND_COLOURS.other,
-        "label": "data(label)", "font-size": 11, "min-zoomed-font-size": 9, "color": "#1d2433",
-        "text-valign": "bottom", "text-margin-y": 3, "width": 18, "height": 18 } }
+        "label": "data(label)", "font-size": 11, "min-zoomed-font-size": 14, "color": "#1d2433",
+        "text-valign": "bottom", "text-margin-y": 3, "width": 18, "height": 18,
+        "text-wrap": "ellipsis", "text-max-width": 130 } }
     ].concat(byKind, [
-      { selector: "node[kind = 'robot']", style: { "shape": "round-rectangle", "width": 34, "height": 26, "font-weight": "bold" } },
-      { selector: "node[kind = 'human']", style: { "width": 30, "height": 30, "font-weight": "bold" } },
+      { selector: "node[kind = 'robot']", style: Object.assign({ "shape": "round-rectangle", "width": 34, "height": 26,
+        "font-weight": "bold", "font-size": 14 }, labelled) },
+      { selector: "node[kind = 'human']", style: Object.assign({ "width": 30, "height": 30, "font-weight": "bold",
+        "font-size": 14 }, labelled) },
+      { selector: "node[kind = 'message']", style: Object.assign({ "shape": "round-rectangle", "font-size": 12 }, labelled) },
       { selector: "node[kind = 'shared-event']", style: { "shape": "diamond" } },
-      { selector: "node[kind = 'message']", style: { "shape": "round-rectangle" } },
       { selector: "node[kind = 'emotion']", style: { "shape": "star" } },
       { selector: "node[kind = 'model']", style: { "shape": "hexagon" } },
+      { selector: "node.hover, node.focused, node:selected", style: { "min-zoomed-font-size": 0, "z-index": 20,
+        "text-max-width": 260, "text-background-color": "#ffffff", "text-background-opacity": 0.9 } },
+      { selector: "node.folded", style: { "display": "none" } },
       { selector: "node:selected", style: { "border-width": 4, "border-color": "#f4511e" } },
+      { selector: "node.focused", style: { "border-width": 4, "border-color": "#12203f", "border-style": "double" } },
       { selector: "node.found", style: { "border-width": 5, "border-color": "#f4511e", "width": 34, "height": 34 } },
       { selector: "edge", style: large ? {
         "curve-style": "haystack", "width": 1, "line-color": "#c3cad6", "opacity": 0.7 } : {
@@ -125,12 +190,61 @@
     ]);
   }
 
+  function folded() { return cy.nodes(".folded").length; }
+
+  /* The nodes drawn now: all but the folded ones (a class, so it holds before the next style pass). */
+  function shown() { return cy.nodes().not(".folded"); }
+
   function updateStats() {
+    var hidden = folded();
     stats.textContent = cy.nodes().length + " nodes · " + cy.edges().length + " edges" +
+      (hidden ? " · " + hidden + " other nodes folded" : "") + viewNote +
       (truncated ? " · truncated: raise the node limit or filter to see the rest" : "");
     stats.dataset.nodes = String(cy.nodes().length);
     stats.dataset.edges = String(cy.edges().length);
+    stats.dataset.folded = String(hidden);
     stats.dataset.truncated = String(truncated);
+    otherCount.textContent = cy.nodes("[kind = 'other']").length + " other";
+    refreshLanes();
+  }
+
+  /* Lane names: an overlay at the left of the drawing, kept beside its lane through pan and zoom. */
+  function buildLanes() {
+    LANES.forEach(function (kind) {
+      var item = el("li", LANE_NAMES[kind], "graph-lane lane-" + kind);
+      item.dataset.kind = kind;
+      lanesBox.appendChild(item);
+      laneItems[kind] = item;
+    });
+  }
+
+  function refreshLanes() {
+    LANES.forEach(function (kind) { lanesInUse[kind] = shown().filter("[kind = '" + kind + "']").nonempty(); });
+    placeLanes();
+  }
+
+  function placeLanes() {
+    var zoom = cy.zoom(), pan = cy.pan(), height = container.clientHeight;
+    LANES.forEach(function (kind, i) {
+      var top = i * LANE_HEIGHT * zoom + pan.y - 30;
+      var item = laneItems[kind];
+      item.hidden = !lanesInUse[kind] || top < -20 || top > height;
+      item.style.transform = "translateY(" + Math.round(top) + "px)";
+    });
+  }
+
+  /* The whole drawing if it can be read at that zoom; else its beginning (left, top) at a readable zoom. */
+  function initialView() {
+    var drawn = shown();
+    if (drawn.empty()) { return; }
+    cy.fit(drawn, 40);
+    viewNote = "";
+    if (cy.zoom() < READABLE_ZOOM) {
+      var box = drawn.boundingBox();
+      cy.zoom(READABLE_ZOOM);
+      cy.pan({ x: 40 - box.x1 * READABLE_ZOOM, y: 40 - box.y1 * READABLE_ZOOM });
+      viewNote = " · showing the start at a readable zoom: drag, use the arrow keys or Fit to see the rest";
+    }
   }
 
   function draw(data) {
@@ -139,7 +253,7 @@
     var positions = layout(data.nodes, data.edges, null);
     cy = cytoscape({
       container: container,
-      elements: elementsOf(data, positions),
+      elements: data.nodes.map(function (n) { return nodeElement(n, positions[n.id]); }).concat(data.edges.map(edgeElement)),
       layout: { name: "preset" },
       style: style(large),
       minZoom: 0.02, maxZoom: 4,
@@ -147,31 +261,49 @@
       renderer: { name: "canvas", webgl: large && WEBGL },
       boxSelectionEnabled: false
     });
-    cy.on("tap", "node", function (event) { openPanel(event.target.id()); });
+    cy.on("tap", "node", function (event) { setFocus(event.target, false); openPanel(event.target.id(), false); });
+    cy.on("mouseover", "node", function (event) { event.target.addClass("hover"); });
+    cy.on("mouseout", "node", function (event) { event.target.removeClass("hover"); });
+    cy.on("viewport", placeLanes);
+    initialView();
     cy.one("render", function () {
       var elapsed = Math.round(performance.now() - started);
       window.segbGraph = {
         ready: true, nodes: cy.nodes().length, edges: cy.edges().length, ms: elapsed,
-        fetchMs: Math.round(fetchedAt - started), drawMs: Math.round(performance.now() - fetchedAt)
+        fetchMs: Math.round(fetchedAt - started), drawMs: Math.round(performance.now() - fetchedAt),
+        labelsShown: labelsShown
       };
       container.dataset.ready = "true";
       container.dataset.renderMs = String(elapsed);
       updateStats();
-      if (data.matches && data.matches.length) { focusNode(data.matches[0]); }
+      if (data.matches && data.matches.length) { focusNode(data.matches[0], false); }
     });
     if (!data.nodes.length) {
       stats.textContent = "No nodes match — robots have not published yet, or the filters exclude everything.";
     }
   }
 
-  function focusNode(id) {
+  /* The nodes in view whose label is drawn at the current zoom, as "kind: label" (for checks and tests). */
+  function labelsShown() {
+    var zoom = cy.zoom(), width = container.clientWidth, height = container.clientHeight;
+    return shown().filter(function (n) {
+      var at = n.renderedPosition();
+      var drawn = n.pstyle("font-size").pfValue * zoom >= n.pstyle("min-zoomed-font-size").pfValue;
+      return drawn && at.x >= 0 && at.y >= 0 && at.x <= width && at.y <= height;
+    }).map(function (n) { return n.data("kind") + ": " + n.data("label"); });
+  }
+
+  /* Select a node, bring it into view and open its details; `moveFocus` sends keyboard focus to them. */
+  function focusNode(id, moveFocus) {
     var node = cy.getElementById(id);
     if (!node || node.empty()) { return false; }
+    node.removeClass("folded"); // a node asked for by name is shown even while its kind is folded
     cy.nodes(".found").removeClass("found");
     cy.$(":selected").unselect();
     node.addClass("found").select();
+    setFocus(node, false);
     cy.animate({ center: { eles: node }, zoom: Math.max(cy.zoom(), 1.2) }, { duration: 250 });
-    openPanel(id);
+    openPanel(id, moveFocus);
     return true;
   }
 
@@ -181,28 +313,27 @@
     var hit = cy.nodes().filter(function (n) {
       return String(n.data("label")).toLowerCase().indexOf(needle) >= 0 || n.id().toLowerCase().indexOf(needle) >= 0;
     });
-    if (hit.nonempty()) { focusNode(hit[0].id()); return; }
+    if (hit.nonempty()) { focusNode(hit[0].id(), false); return; }
     // Not drawn yet: ask the server, merge what it finds, then focus.
     fetchJson("/kg-graph/data?" + new URLSearchParams({ q: query.trim(), limit: "200" })).then(function (data) {
       merge(data, null);
-      if (!data.matches.length || !focusNode(data.matches[0])) {
+      if (!data.matches.length || !focusNode(data.matches[0], false)) {
         stats.textContent = "Nothing named “" + query.trim() + "” in the graph.";
       }
     }).catch(showError);
   }
 
   function merge(data, around) {
-    var fresh = { nodes: data.nodes.filter(function (n) { return cy.getElementById(n.id).empty(); }), edges: [] };
+    var fresh = data.nodes.filter(function (n) { return cy.getElementById(n.id).empty(); });
     var anchor = around ? around.position() : null;
-    var positions = layout(fresh.nodes, data.edges.filter(function (e) {
-      return fresh.nodes.some(function (n) { return n.id === e.source || n.id === e.target; });
+    var positions = layout(fresh, data.edges.filter(function (e) {
+      return fresh.some(function (n) { return n.id === e.source || n.id === e.target; });
     }), anchor);
-    cy.add(elementsOf(fresh, positions));
-    cy.add(data.edges.filter(function (e) { return cy.getElementById(e.id).empty(); }).map(function (e) {
-      return { group: "edges", data: { id: e.id, source: e.source, target: e.target, label: e.label } };
-    }));
+    cy.add(fresh.map(function (n) { return nodeElement(n, positions[n.id]); }));
+    cy.add(data.edges.filter(function (e) { return cy.getElementById(e.id).empty(); }).map(edgeElement));
     updateStats();
-    return fresh.nodes.length;
+    refreshList();
+    return fresh.length;
   }
 
   function expand(id) {
@@ -213,9 +344,138 @@
     }).catch(showError);
   }
 
-  function statementTable(title, statements, incoming) {
+  /* --- keyboard: the drawing as one focusable widget ------------------------------------------------ */
+
+  function describe(node) {
+    var time = node.data("time");
+    return node.data("label") + " (" + node.data("kind") + (time ? ", " + time : "") + ")";
+  }
+
+  function setFocus(node, bringIntoView) {
+    if (focused && !focused.removed()) { focused.removeClass("focused"); }
+    focused = node.addClass("focused");
+    if (bringIntoView) {
+      var at = node.renderedPosition();
+      if (at.x < 40 || at.y < 40 || at.x > container.clientWidth - 40 || at.y > container.clientHeight - 40) {
+        cy.animate({ center: { eles: node } }, { duration: 150 });
+      }
+      announce.textContent = describe(node) + ". Enter opens its details.";
+    }
+  }
+
+  function startingNode() {
+    var visible = shown();
+    var robots = visible.filter("[kind = 'robot']");
+    return robots.nonempty() ? robots[0] : visible[0];
+  }
+
+  /* The nearest visible node in one direction, preferring nodes in line with the current one. */
+  function step(direction) {
+    if (!focused || focused.removed() || focused.hasClass("folded")) {
+      var first = startingNode();
+      if (first) { setFocus(first, true); }
+      return;
+    }
+    var from = focused.position(), best = null, bestScore = Infinity;
+    shown().forEach(function (n) {
+      if (n.same(focused)) { return; }
+      var p = n.position(), dx = p.x - from.x, dy = p.y - from.y;
+      var along = direction[0] ? dx * direction[0] : dy * direction[1];
+      var across = direction[0] ? Math.abs(dy) : Math.abs(dx);
+      if (along <= 0) { return; }
+      var score = along + 2 * across;
+      if (score < bestScore) { bestScore = score; best = n; }
+    });
+    if (best) { setFocus(best, true); } else { announce.textContent = "No node further that way."; }
+  }
+
+  function zoomBy(factor) {
+    var at = focused && !focused.hasClass("folded") ? focused.renderedPosition()
+      : { x: container.clientWidth / 2, y: container.clientHeight / 2 };
+    cy.zoom({ level: cy.zoom() * factor, renderedPosition: at });
+    announce.textContent = "Zoom " + Math.round(cy.zoom() * 100) + " %";
+  }
+
+  function fitAll() {
+    cy.fit(shown(), 40);
+    announce.textContent = "The whole drawing, zoom " + Math.round(cy.zoom() * 100) + " %";
+  }
+
+  container.addEventListener("keydown", function (event) {
+    if (!cy || event.altKey || event.ctrlKey || event.metaKey) { return; }
+    var key = event.key;
+    if (ARROWS[key]) {
+      event.preventDefault();
+      step(ARROWS[key]);
+    } else if ((key === "Enter" || key === " ") && focused) {
+      event.preventDefault();
+      cy.$(":selected").unselect();
+      focused.select();
+      openPanel(focused.id(), false);
+      announce.textContent = "Details of " + describe(focused) + " are beside the drawing.";
+    } else if (key === "+" || key === "=") {
+      event.preventDefault();
+      zoomBy(1.25);
+    } else if (key === "-" || key === "_") {
+      event.preventDefault();
+      zoomBy(0.8);
+    } else if (key === "0") {
+      event.preventDefault();
+      fitAll();
+    }
+  });
+  container.addEventListener("focus", function () {
+    if (cy && !focused) {
+      var first = startingNode();
+      if (first) { setFocus(first, true); }
+    }
+  });
+
+  /* --- the drawn nodes as a list (for keyboards and screen readers) -------------------------------- */
+
+  function refreshList() {
+    if (!list.open || !cy) { return; }
+    var parts = [];
+    LANES.forEach(function (kind) {
+      var nodes = shown().filter("[kind = '" + kind + "']");
+      if (nodes.empty()) { return; }
+      parts.push(el("h3", LANE_NAMES[kind] + " (" + nodes.length + ")"));
+      var items = el("ul", null, "graph-list-items");
+      nodes.forEach(function (n) {
+        var button = el("button", n.data("label"), "link-button");
+        button.type = "button";
+        button.dataset.id = n.id();
+        if (n.data("time")) { button.appendChild(el("span", " · " + n.data("time"), "muted")); }
+        var item = el("li");
+        item.appendChild(button);
+        items.appendChild(item);
+      });
+      parts.push(items);
+    });
+    if (!parts.length) { parts.push(el("p", "Nothing is drawn.", "muted")); }
+    listBody.replaceChildren.apply(listBody, parts);
+  }
+
+  list.addEventListener("toggle", refreshList);
+  listBody.addEventListener("click", function (event) {
+    var button = event.target.closest("button[data-id]");
+    if (button && cy) { focusNode(button.dataset.id, true); }
+  });
+
+  /* --- the details panel --------------------------------------------------------------------------- */
+
+  function statementTable(title, statements) {
     var section = el("section");
     section.appendChild(el("h3", title + " (" + statements.length + ")"));
+    // Two values of one predicate with the same label (rdf:type Person from FOAF and from PROV) are told
+    // apart by their vocabulary.
+    var seen = {};
+    statements.forEach(function (s) {
+      if (!s.is_literal) {
+        var key = s.predicate + "\n" + (s.label || s.value);
+        seen[key] = (seen[key] || 0) + 1;
+      }
+    });
     var table = el("table");
     statements.forEach(function (s) {
       var row = el("tr");
@@ -229,9 +489,12 @@
         link.title = String(s.value);
         link.addEventListener("click", function (event) {
           event.preventDefault();
-          if (!focusNode(String(s.value))) { openPanel(String(s.value)); }
+          if (!focusNode(String(s.value), true)) { openPanel(String(s.value), true); }
         });
         cell.appendChild(link);
+        if (seen[s.predicate + "\n" + (s.label || s.value)] > 1) {
+          cell.appendChild(el("span", " " + compact(s.value), "muted vocabulary"));
+        }
       }
       row.appendChild(cell);
       table.appendChild(row);
@@ -240,14 +503,15 @@
     return section;
   }
 
-  function openPanel(id) {
+  function openPanel(id, moveFocus) {
     panel.replaceChildren(el("p", "Loading…", "muted"));
     fetchJson("/kg-graph/resource?" + new URLSearchParams({ iri: id })).then(function (resource) {
       var parts = [];
-      parts.push(el("h2", resource.label));
+      var heading = el("h2", resource.label);
+      heading.tabIndex = -1;
+      parts.push(heading);
       var kind = el("p");
-      var swatch = el("span", null, "swatch kind-" + resource.kind);
-      kind.appendChild(swatch);
+      kind.appendChild(el("span", null, "swatch kind-" + resource.kind));
       kind.appendChild(document.createTextNode(resource.kind + (resource.time ? " · " + resource.time : "")));
       parts.push(kind);
       parts.push(el("p", resource.iri, "muted panel-iri"));
@@ -260,25 +524,35 @@
       grow.addEventListener("click", function () {
         if (cy.getElementById(resource.iri).empty()) {
           fetchJson("/kg-graph/data?" + new URLSearchParams({ focus: resource.iri, depth: "1", limit: "400" }))
-            .then(function (data) { merge(data, null); focusNode(resource.iri); }).catch(showError);
+            .then(function (data) { merge(data, null); focusNode(resource.iri, false); }).catch(showError);
         } else { expand(resource.iri); }
       });
       actions.appendChild(explain);
       actions.appendChild(grow);
       parts.push(actions);
-      parts.push(statementTable("Outgoing", resource.outgoing, false));
-      parts.push(statementTable("Incoming", resource.incoming, true));
+      parts.push(statementTable("Outgoing", resource.outgoing));
+      parts.push(statementTable("Incoming", resource.incoming));
       panel.replaceChildren.apply(panel, parts);
       panel.dataset.iri = resource.iri;
+      if (moveFocus) { heading.focus(); }
     }).catch(function (error) { panel.replaceChildren(el("p", error.message, "banner banner-error")); });
   }
+
+  /* --- toolbar ------------------------------------------------------------------------------------- */
 
   document.getElementById("graph-search").addEventListener("submit", function (event) {
     event.preventDefault();
     if (cy) { search(document.getElementById("graph-search-input").value); }
   });
-  document.getElementById("graph-fit").addEventListener("click", function () { if (cy) { cy.fit(undefined, 30); } });
+  document.getElementById("graph-fit").addEventListener("click", function () { if (cy) { fitAll(); } });
+  showOther.addEventListener("change", function () {
+    if (!cy) { return; }
+    var others = cy.nodes("[kind = 'other']");
+    if (showOther.checked) { others.removeClass("folded"); } else { others.not(":selected").addClass("folded"); }
+    updateStats();
+    refreshList();
+  });
 
-  var fetchedAt = 0;
+  buildLanes();
   fetchJson(container.dataset.src).then(function (data) { fetchedAt = performance.now(); draw(data); }).catch(showError);
 })();

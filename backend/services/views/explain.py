@@ -222,6 +222,7 @@ class _Reader:
             (step.heard if is_human else step.said).append(message)
         elif entity.kind == "emotion":
             targets = [self.name(t) for t in entity.out(HAS_TARGET)]
+            expressed = bool(targets) and all(self._is_self(step, target["iri"]) for target in targets)
             for emotion_iri in entity.out(HAS_EMOTION):
                 emotion = self.get(emotion_iri)
                 category = emotion.out(ONYX + "hasEmotionCategory")
@@ -231,7 +232,15 @@ class _Reader:
                     "intensity": emotion.literal(ONYX + "hasEmotionIntensity"),
                     "confidence": emotion.literal(ONYX + "algorithmConfidence"),
                     "targets": targets,
+                    "expressed": expressed,
                 })  # fmt: skip
+
+    def _is_self(self, step: Step, target: str) -> bool:
+        """An annotation on the robot that performed the activity is the robot's own, expressed emotion (the
+        client has no other way to log one); without a known performer, any robot target counts as itself."""
+        if step.robot is not None:
+            return target == step.robot["iri"]
+        return self.get(target).kind == "robot"
 
     def _event(self, event: str) -> dict[str, Any]:
         node = self.get(event)
@@ -248,27 +257,30 @@ def _quote(text: object) -> str:
 
 
 def sentence(step: Step) -> str:
-    """One line of the story, e.g. `Maria said “I passed” (heard by ARI via speech)`."""
+    """One line of the story, e.g. `Maria said “I passed” (heard by ARI via speech)`.
+
+    A model is named only beside what it did: with the emotions read when the activity's result was an
+    analysis, with the reply when the activity spoke. An emotion the robot expressed about itself is
+    "expressed", never "analysed": no model read it."""
     robot = step.robot["label"] if step.robot else "Someone"
     modalities = sorted({m for event in step.events for m in event["modalities"]})
     via = f" via {', '.join(modalities)}" if modalities else ""
     models = ", ".join(f"{m['label']} {m['version']}".strip() if m.get("version") else m["label"] for m in step.models)
     using = f" with {models}" if models else ""
+    analysed = [e for e in step.emotions if not e.get("expressed")]
+    expressed = [e for e in step.emotions if e.get("expressed")]
     parts: list[str] = []
     for message in step.heard:
         who = message["sender"]["label"] if message["sender"] else "A human"
         parts.append(f"{who} said {_quote(message['text'])} (heard by {robot}{via})")
-    if step.emotions:
-        readings = "; ".join(
-            f"{e['category']} {e['intensity']}"
-            + (f" on {', '.join(t['label'] for t in e['targets'])}" if e["targets"] else "")
-            for e in step.emotions
-        )
-        parts.append(f"{robot} analysed emotion{using}: {readings}")
+    if analysed:
+        parts.append(f"{robot} analysed emotion{'' if step.said else using}: {_readings(analysed, on=True)}")
     elif step.kind == "decision":
         parts.append(f"{robot} decided {step.label or 'what to do'}{using}")
     for message in step.said:
-        parts.append(f"{robot} said {_quote(message['text'])}" + (using if not step.emotions else ""))
+        parts.append(f"{robot} said {_quote(message['text'])}{using}")
+    if expressed:
+        parts.append(f"{robot} expressed {_readings(expressed, on=False)}")
     if not parts:
         humans = [h["label"] for event in step.events for h in event["humans"]]
         if step.kind == "human-detection" and humans:
@@ -276,3 +288,11 @@ def sentence(step: Step) -> str:
         else:
             parts.append(f"{robot}: {step.label or step.kind}{using}")
     return " · ".join(parts)
+
+
+def _readings(emotions: list[dict[str, Any]], *, on: bool) -> str:
+    return "; ".join(
+        f"{e['category']} {e['intensity']}"
+        + (f" on {', '.join(t['label'] for t in e['targets'])}" if on and e["targets"] else "")
+        for e in emotions
+    )
