@@ -82,7 +82,7 @@ def create_app(settings: Settings | None = None, store: Store | None = None) -> 
         monitor = StoreMonitor(
             active_store, max_retry_seconds=settings.store_retry_max_seconds, check_seconds=settings.store_check_seconds
         )
-        app.state.services.applier.start()
+        app.state.services.start()
         try:
             async with anyio.create_task_group() as background:
                 background.start_soon(monitor.run)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import uuid
 from dataclasses import dataclass
 
 from segb_server.backend.config import Settings
@@ -17,6 +18,9 @@ from segb_server.backend.services.sparql.catalog import Catalog
 from segb_server.backend.services.sparql.runner import QueryRunner, query_runner
 from segb_server.backend.services.views.explain import ExplainService
 from segb_server.backend.services.views.graph import GraphService
+from segb_server.backend.services.views.materialized.maintainer import ReportMaintainer
+from segb_server.backend.services.views.materialized.rows import ReportRows
+from segb_server.backend.services.views.reports import FOLDER as REPORTS_FOLDER
 from segb_server.backend.services.views.reports import ReportService
 from segb_server.backend.store.base import Store
 
@@ -24,6 +28,7 @@ from segb_server.backend.store.base import Store
 REQUIRED_QUERIES = ("reports/", "graph/elements", "graph/resource-in", "graph/resource-out")
 # Stores written only through this server (the journal's applier), whose cached results a write invalidates.
 OWNED_STORES = {"oxigraph", "memory"}
+REPORTS_FILE = "reports.sqlite3"  # the reports' rows, kept current; rebuilt from the store when missing
 
 
 @dataclass
@@ -41,8 +46,16 @@ class Services:
     queries: QueryRunner
     server_log: ServerLog | None = None  # the API's own log; None where nothing serves it (the CLI, the demo)
 
+    def start(self) -> None:
+        """Start the background work of a serving API: applying the journal, keeping reports current."""
+        self.applier.start()
+        if self.reports.maintainer is not None:
+            self.reports.maintainer.start()
+
     def close(self) -> None:
         self.applier.stop()
+        if self.reports.maintainer is not None:
+            self.reports.maintainer.stop()
         self.queries.close()
         self.journal.close()
         self.shared_context.close()
@@ -65,6 +78,11 @@ def build_services(
     applier.on_applied(lambda _step: version.bump())  # whatever the applier writes invalidates cached results
     cache = ResultCache(version, enabled=store.kind in OWNED_STORES)
     graph = GraphService(catalog, store, cache)
+    rows = ReportRows(None if in_memory else settings.data_dir / REPORTS_FILE, uuid.uuid4().hex)
+    maintainer = ReportMaintainer(store, journal, rows)
+    for query in catalog.under(REPORTS_FOLDER):
+        maintainer.add(query)
+    applier.on_applied(maintainer.on_applied)
     return Services(
         settings=settings,
         store=store,
@@ -80,7 +98,7 @@ def build_services(
             apply_timeout=settings.ingest_apply_timeout_seconds,
             max_backlog=settings.journal_max_backlog,
         ),
-        reports=ReportService(catalog, store, cache),
+        reports=ReportService(catalog, store, cache, maintainer),
         graph=graph,
         explain=ExplainService(graph),
         shared_context=SharedContextService.open(

@@ -49,3 +49,20 @@ def top_level_where(sparql: str) -> int | None:
         elif character == "}":
             depth -= 1
     return None
+
+
+def top_level_where_end(sparql: str) -> int | None:
+    """The offset of the `}` that closes the query's own WHERE group, or None if there is none."""
+    opening = top_level_where(sparql)
+    if opening is None:
+        return None
+    code = code_only(sparql)
+    depth = 1
+    for offset in range(opening, len(code)):
+        if code[offset] == "{":
+            depth += 1
+        elif code[offset] == "}":
+            depth -= 1
+            if depth == 0:
+                return offset
+    return None

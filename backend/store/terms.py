@@ -6,8 +6,8 @@ import re
 
 from pyoxigraph import BlankNode, Triple
 
-from segb_server.backend.store.base import Bindings
-from segb_server.backend.store.sparql_text import top_level_where
+from segb_server.backend.store.base import Bindings, Term
+from segb_server.backend.store.sparql_text import top_level_where, top_level_where_end
 
 _VARIABLE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
@@ -45,3 +45,23 @@ def bind_values(sparql: str, bindings: Bindings | None) -> str:
     if opening is None:
         raise ValueError("query has no WHERE group to bind values into")
     return f"{sparql[:opening]}\n  {block}\n{sparql[opening:]}"
+
+
+def bind_rows(sparql: str, names: list[str], rows: list[list[Term | None]]) -> str:
+    """Put a VALUES block of several rows (a key to evaluate the query for) into the query's WHERE group."""
+    for name in names:
+        if not _VARIABLE_NAME.fullmatch(name):
+            raise ValueError(f"invalid SPARQL variable name {name!r}")
+    lines = " ".join("(" + " ".join("UNDEF" if term is None else term_text(term) for term in row) + ")" for row in rows)
+    block = f"VALUES ({' '.join('?' + name for name in names)}) {{ {lines} }}"
+    return _with_values(sparql, block)
+
+
+def _with_values(sparql: str, block: str) -> str:
+    """The query with its WHERE group wrapped as `{ VALUES … { group } }`. The answer is the same as with the
+    VALUES inside the group, but Virtuoso 7 skips some FILTERs of a group that opens with VALUES (a BOUND test
+    after OPTIONALs let unmatched rows through), and evaluates a group that ends with VALUES without them."""
+    opening, closing = top_level_where(sparql), top_level_where_end(sparql)
+    if opening is None or closing is None:
+        raise ValueError("query has no WHERE group to bind values into")
+    return f"{sparql[:opening]}\n  {block}\n  {{{sparql[opening:closing]}}}\n{sparql[closing:]}"

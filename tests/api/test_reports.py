@@ -19,6 +19,7 @@ from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.conftest import make_settings, virtuoso_store
 from tests.support.live_server import LiveServer
 from tests.support.scenarios import Scenario, lobby
+from tests.support.settle import settle
 
 pytestmark = pytest.mark.virtuoso
 
@@ -61,6 +62,8 @@ def published(virtuoso, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Pu
             scenario.loggers[robot].publish(publishers[(kind, robot)])
 
     scenario.run_steps(publish_everywhere)
+    for server in servers.values():
+        settle(server.url)
     yield Published(scenario, servers)
     for server in servers.values():
         server.__exit__(None, None, None)

@@ -1,11 +1,12 @@
-"""Binding values into a query: into its own top-level WHERE group, never a subquery's or a template."""
+"""Binding values into a query: into its own top-level WHERE group (at its end), never a subquery's or a
+template."""
 
 from __future__ import annotations
 
 import pytest
 from pyoxigraph import Literal, NamedNode, Quad, Store
 
-from segb_server.backend.store.terms import bind_values
+from segb_server.backend.store.terms import bind_rows, bind_values
 
 EX = "http://example.org/"
 
@@ -27,6 +28,12 @@ def test_values_open_the_outer_group_when_a_subquery_comes_first_in_the_text(sto
     bound = bind_values(query, {"wanted": NamedNode(EX + "a")})
     assert bound.index("VALUES") < bound.index("SELECT ?s WHERE")
     assert names(store, bound) == [EX + "a"]
+
+
+def test_rows_of_values_join_the_whole_group_filters_included(store: Store) -> None:
+    query = f"SELECT ?s WHERE {{ ?s <{EX}p> ?o OPTIONAL {{ ?s <{EX}q> ?q }} FILTER (?o != \"2\") }}"
+    bound = bind_rows(query, ["s"], [[NamedNode(EX + "a")], [NamedNode(EX + "b")], [NamedNode(EX + "c")]])
+    assert names(store, bound) == [EX + "a"]  # b is filtered out, c has no triple
 
 
 def test_a_construct_template_is_skipped_and_text_in_strings_is_ignored(store: Store) -> None:

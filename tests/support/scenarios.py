@@ -21,6 +21,8 @@ from semantic_log_generator import (
     SemanticSEGBLogger,
 )
 
+from tests.support.settle import settle
+
 ORO = "http://kb.openrobots.org#"
 INITIAL = URIRef(ORO + "InitialMessage")
 RESPONSE = URIRef(ORO + "ResponseMessage")
@@ -56,10 +58,12 @@ class Scenario:
                 after_step(robot)
 
     def publish_all(self, base_url: str, token: str | None = None) -> list[dict]:
-        """Run every step, publishing the changed robot's whole graph after each; return the responses."""
+        """Run every step, publishing the changed robot's whole graph after each; return the responses once the
+        server shows every post in its reports."""
         publishers = {name: SEGBPublisher(base_url=base_url, token=token, default_user=name) for name in self.loggers}
         responses: list[dict] = []
         self.run_steps(lambda robot: responses.append(self.loggers[robot].publish(publishers[robot])))
+        settle(base_url)
         return responses
 
     def published_turtle(self) -> list[str]:

@@ -40,10 +40,11 @@ async def live() -> ProbeResponse:
     summary="Readiness",
     description=(
         'Pings the triple store and checks the journal. 200 with `{"ready": true, "<store kind>": true}` when the '
-        "store answers, 503 with `\"ready\": false` (and a `detail`) when it does not or when the journal's disk "
-        "is full (`\"journal\": false`). The store kind is `virtuoso`, `oxigraph`, `memory` or `sparql`, so on "
+        'store answers, 503 with `"ready": false` (and a `detail`) when it does not or when the journal\'s disk '
+        'is full (`"journal": false`). The store kind is `virtuoso`, `oxigraph`, `memory` or `sparql`, so on '
         'the Virtuoso stack the body is `{"ready": true, "virtuoso": true}`. While the store has journal entries '
-        'to apply, `"apply_lag": {"entries", "seconds"}` says how far behind it is (absent once caught up).'
+        'to apply, `"apply_lag": {"entries", "seconds"}` says how far behind it is, and `"reports_lag": {"entries"}` '
+        "how far the reports' rows are behind the store (both absent once caught up)."
     ),
     response_class=ProbeResponse,
     responses={
@@ -68,6 +69,10 @@ async def ready(services: ServicesDep) -> ProbeResponse:
         entries, seconds = services.applier.lag()
         if entries:  # only then: the tutorial's `{"ready": true, "virtuoso": true}` stays exact when caught up
             body["apply_lag"] = {"entries": entries, "seconds": round(seconds, 3)}
+        maintainer = services.reports.maintainer
+        behind = maintainer.lag(services.applier.applied) if maintainer is not None else 0
+        if behind:
+            body["reports_lag"] = {"entries": behind}
         return body, status
 
     body, status = await anyio.to_thread.run_sync(probe, limiter=_probe_threads)

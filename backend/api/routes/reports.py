@@ -22,7 +22,7 @@ from segb_server.backend.services.sparql.catalog import Catalog, CatalogQuery
 from segb_server.backend.services.views.reports import DEFAULT_LIMIT, FOLDER, MAX_LIMIT, describe, short_name
 
 # Query-string names that page or format a report; every other name must be one of the report's parameters.
-CONTROL_PARAMETERS = ("limit", "offset", "format")
+CONTROL_PARAMETERS = ("limit", "offset", "format", "after")
 _OPENAPI_TYPES = {"iri": ("string", "uri"), "dateTime": ("string", "date-time"), "decimal": ("number", None)}
 
 
@@ -51,6 +51,12 @@ def _paging_parameters() -> list[dict[str, Any]]:
             "description": "Rows to skip.",
         },
         {
+            "name": "after",
+            "in": "query",
+            "schema": {"type": "string"},
+            "description": "The `next` cursor of the previous page: the next page, read from an index (keyset).",
+        },
+        {
             "name": "format",
             "in": "query",
             "schema": {"type": "string", "enum": names(TABLES)},
@@ -77,7 +83,8 @@ async def answer_report(name: str, request: Request, services: ServicesDep) -> R
     offset = _whole(request, "offset", 0, 0, MAX_OFFSET)
     fmt = negotiate(TABLES, request.headers.get("accept"), request.query_params.get("format"), what="a report")
     filters = {key: value for key, value in request.query_params.items() if key not in CONTROL_PARAMETERS}
-    table = await run_in_threadpool(services.reports.run, name, filters, limit, offset)
+    after = request.query_params.get("after")
+    table = await run_in_threadpool(services.reports.run, name, filters, limit, offset, after)
     if fmt.name == "csv":
         return Response(
             table.as_csv(),

@@ -11,6 +11,7 @@ from __future__ import annotations
 import threading
 
 from pyparsing import ParseResults
+from rdflib.plugins.sparql.algebra import translateQuery
 from rdflib.plugins.sparql.parser import parseQuery, parseUpdate
 from rdflib.plugins.sparql.parserutils import CompValue
 
@@ -21,6 +22,12 @@ def parse_query(text: str) -> ParseResults:
     """rdflib's parse tree of a SPARQL query (raises pyparsing's ParseBaseException, or RecursionError)."""
     with _lock:
         return parseQuery(text)
+
+
+def translate_query(text: str) -> CompValue:
+    """rdflib's algebra of a SPARQL query (raises on syntax errors)."""
+    with _lock:
+        return translateQuery(parseQuery(text)).algebra
 
 
 def parse_update(text: str) -> CompValue:

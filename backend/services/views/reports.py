@@ -9,11 +9,13 @@ from dataclasses import dataclass
 
 from segb_server.backend.services.errors import NotFound
 from segb_server.backend.services.ops.result_cache import DataVersion, ResultCache
-from segb_server.backend.services.sparql.catalog import Catalog, CatalogQuery, paged
+from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, Catalog, CatalogQuery, paged
+from segb_server.backend.services.views.materialized.maintainer import ReportMaintainer
 from segb_server.backend.services.views.term_values import JsonValue, json_value
 from segb_server.backend.store.base import Bindings, Store, select
 
 FOLDER = "reports"
+SORT_LIMIT = 10_000  # rows a store sorts for one answer (Virtuoso's MaxSortedTopRows)
 DEFAULT_LIMIT = 1000
 MAX_LIMIT = 10_000
 
@@ -43,6 +45,8 @@ class ReportTable:
     limit: int
     offset: int
     has_more: bool
+    next: str | None = None  # the cursor of the next page (`after=`), when rows are served from the report's rows
+    served_from: str = "query"  # "rows" (kept current as the graph changes) or "query" (evaluated in full)
 
     def as_json(self) -> dict[str, object]:
         described = describe(self.query)
@@ -57,6 +61,8 @@ class ReportTable:
             "limit": self.limit,
             "offset": self.offset,
             "has_more": self.has_more,
+            "next": self.next,
+            "served_from": self.served_from,
         }
 
     def as_csv(self) -> str:
@@ -77,10 +83,20 @@ def _csv_cell(value: JsonValue) -> str:
 
 
 class ReportService:
-    def __init__(self, catalog: Catalog, store: Store, cache: ResultCache | None = None) -> None:
+    """Reports served from their rows, kept current as the graph changes (services/views/materialized), or,
+    while those are being built or for a report they cannot follow, by evaluating the report's query."""
+
+    def __init__(
+        self,
+        catalog: Catalog,
+        store: Store,
+        cache: ResultCache | None = None,
+        maintainer: ReportMaintainer | None = None,
+    ) -> None:
         self.catalog = catalog
         self.store = store
         self.cache = cache or ResultCache(DataVersion(), enabled=False)
+        self.maintainer = maintainer
 
     def reports(self) -> list[CatalogQuery]:
         return self.catalog.under(FOLDER)
@@ -96,18 +112,30 @@ class ReportService:
     def names(self) -> list[str]:
         return [short_name(query) for query in self.reports()]
 
-    def run(self, name: str, filters: Mapping[str, str | None], limit: int, offset: int = 0) -> ReportTable:
-        """Rows `offset`…`offset+limit` of a report; blocking (store I/O), so call it off the event loop."""
+    def run(
+        self, name: str, filters: Mapping[str, str | None], limit: int, offset: int = 0, after: str | None = None
+    ) -> ReportTable:
+        """Rows `offset`…`offset+limit` (or the `limit` rows after the cursor `after`) of a report; blocking
+        (SQLite or store I/O), so call it off the event loop."""
         query = self.report(name)
         bindings = query.bindings(filters)
+        if self.maintainer is not None:
+            bound = {p: bindings[PARAMETER_VARIABLE_PREFIX + p] for p in query.parameters}
+            page = self.maintainer.page(query.name, bound, limit, offset, after)
+            if page is not None:
+                columns = [name[1:] for name in self.maintainer.reports[query.name].layout.plan.columns]
+                return ReportTable(query, columns, page.rows, limit, offset, page.has_more, page.after, "rows")
         key = ("report", name, tuple(sorted((k, str(v)) for k, v in bindings.items())), limit, offset)
         return self.cache.get(key, lambda: self._compute(query, bindings, limit, offset))
 
     def _compute(self, query: CatalogQuery, bindings: Bindings, limit: int, offset: int) -> ReportTable:
-        # One row past the page tells whether another page exists without counting the whole result.
-        result = select(self.store, paged(query.text, limit + 1, offset), bindings)
+        # One row past the page tells whether another page exists without counting the whole result; Virtuoso
+        # sorts at most 10,000 rows, so a page of the largest size is asked as is and counts as full when full.
+        asked = min(limit + 1, SORT_LIMIT)
+        result = select(self.store, paged(query.text, asked, offset), bindings)
         rows = [{column: json_value(row.get(column)) for column in result.columns} for row in result.rows[:limit]]
-        return ReportTable(query, result.columns, rows, limit, offset, len(result.rows) > limit)
+        more = len(result.rows) > limit or (asked == limit and len(result.rows) == limit)
+        return ReportTable(query, result.columns, rows, limit, offset, more)
 
 
 def short_name(query: CatalogQuery) -> str:

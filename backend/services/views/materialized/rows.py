@@ -1,0 +1,383 @@
+"""The rows of materialised reports, in SQLite: replaced key by key as the graph changes, read page by page
+with the report's filters as indexed comparisons and its order as an index (keyset paging).
+
+A plain report keeps its rows as its query gives them. An aggregate report keeps its contributions (the rows
+before grouping, one unit per value of its COUNT(DISTINCT …) argument) and groups them when read, so filters
+that apply before grouping (a time window) stay exact.
+"""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+import struct
+import threading
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from pyoxigraph import NamedNode
+
+from segb_server.backend.services.sparql.catalog import Parameter
+from segb_server.backend.services.views.materialized.encoding import filter_value, sort_key
+from segb_server.backend.services.views.materialized.plan import ReportPlan
+from segb_server.backend.services.views.term_values import JsonValue, iso_time, json_value
+from segb_server.backend.store.base import Term
+from segb_server.backend.store.terms import term_text
+
+Row = dict[str, Term]  # one solution: variable name (without ?) → term
+
+
+@dataclass(frozen=True)
+class Page:
+    rows: list[dict[str, JsonValue]]
+    has_more: bool
+    after: str | None  # cursor of the last row, for the next page
+
+
+@dataclass(frozen=True)
+class Layout:
+    """How one report's rows are stored: its table and the filter columns it indexes."""
+
+    table: str
+    plan: ReportPlan
+    parameters: dict[str, Parameter]
+
+    @property
+    def filter_columns(self) -> dict[str, str]:
+        """Column variable (without ?) → SQL column, for each column a filter compares."""
+        return {f.column[1:]: f"f_{f.column[1:]}" for f in self.plan.column_filters}
+
+    @property
+    def anchors(self) -> dict[str, str]:
+        return {f.anchor[1:]: f"a_{f.anchor[1:]}" for f in self.plan.facet_filters}
+
+    def kind_of(self, column: str) -> str:
+        kinds = {f.column[1:]: self.parameters[f.parameter].type for f in self.plan.column_filters}
+        return kinds[column]
+
+    @property
+    def column_count(self) -> int:
+        aggregates = len(self.plan.aggregates) if self.plan.is_aggregate else 0
+        return 4 + len(self.filter_columns) + len(self.anchors) + aggregates
+
+    def schema(self) -> list[str]:
+        filters = [f"{sql} {'REAL' if self.kind_of(var) in ('decimal', 'integer') else 'TEXT'}"
+                   for var, sql in self.filter_columns.items()]  # fmt: skip
+        anchors = [f"{sql} TEXT" for sql in self.anchors.values()]
+        aggregate = [f"g_{i} TEXT" for i in range(len(self.plan.aggregates))] if self.plan.is_aggregate else []
+        columns = ", ".join(["unit TEXT", "n INTEGER", "ord TEXT", "row TEXT", *filters, *anchors, *aggregate])
+        statements = [
+            f"CREATE TABLE IF NOT EXISTS {self.table} ({columns}, PRIMARY KEY (unit, n))",
+            f"CREATE INDEX IF NOT EXISTS {self.table}_ord ON {self.table} (ord, unit, n)",
+            f"CREATE TABLE IF NOT EXISTS {self.table}_facets (param TEXT, value TEXT, anchor TEXT, "
+            "PRIMARY KEY (param, value, anchor))",
+        ]
+        for sql in [*self.filter_columns.values(), *self.anchors.values()]:
+            statements.append(f"CREATE INDEX IF NOT EXISTS {self.table}_{sql} ON {self.table} ({sql}, ord)")
+        return statements
+
+    def record(self, unit: str, index: int, row: Row) -> tuple[object, ...]:
+        """One stored row: its unit, place, sort key, JSON, filter values, anchors, aggregate arguments."""
+        plan = self.plan
+        order = plan.group_by if plan.is_aggregate else plan.order
+        values: list[object] = [unit, index, sort_key([row.get(name[1:]) for name in order])]
+        values.append(json.dumps({name[1:]: _stored(row.get(name[1:])) for name in self._stored_columns()}))
+        values += [filter_value(row.get(var), self.kind_of(var)) for var in self.filter_columns]
+        values += [term_text(row[var]) if var in row else None for var in self.anchors]
+        if plan.is_aggregate:
+            values += [_aggregate_input(aggregate.function, row.get(aggregate.argument[1:]))
+                       for aggregate in plan.aggregates]  # fmt: skip
+        return tuple(values)
+
+    def _stored_columns(self) -> list[str]:
+        return self.plan.group_by if self.plan.is_aggregate else self.plan.columns
+
+
+class ReportRows:
+    """Every materialised report's rows in one SQLite database (a file, or shared memory)."""
+
+    def __init__(self, path: Path | None, name: str) -> None:
+        # Readers and the one writer use their own connections; WAL lets them read while it writes.
+        self._uri = f"file:{path}" if path is not None else f"file:segb-reports-{name}?mode=memory&cache=shared"
+        self._local = threading.local()
+        self._writer_lock = threading.Lock()
+        self._keep_alive = self._connect()  # holds a shared in-memory database open
+        if path is not None:
+            self._keep_alive.execute("PRAGMA journal_mode=WAL")
+        self._keep_alive.execute(
+            "CREATE TABLE IF NOT EXISTS report_state (report TEXT PRIMARY KEY, fingerprint TEXT, through INTEGER)"
+        )
+        self._keep_alive.execute(
+            "CREATE TABLE IF NOT EXISTS report_changes (seq INTEGER PRIMARY KEY AUTOINCREMENT, report TEXT, "
+            "unit TEXT, through INTEGER)"
+        )
+
+    def _connect(self) -> sqlite3.Connection:
+        connection = sqlite3.connect(self._uri, uri=True, check_same_thread=False, isolation_level=None, timeout=30)
+        connection.execute("PRAGMA busy_timeout=30000")
+        return connection
+
+    def _reader(self) -> sqlite3.Connection:
+        connection = getattr(self._local, "connection", None)
+        if connection is None:
+            connection = self._local.connection = self._connect()
+        return connection
+
+    # --- state ---------------------------------------------------------------------------------------
+
+    def state(self, report: str) -> tuple[str | None, int]:
+        row = (
+            self._reader()
+            .execute("SELECT fingerprint, through FROM report_state WHERE report = ?", (report,))
+            .fetchone()
+        )
+        return (row[0], row[1]) if row else (None, 0)
+
+    def set_state(self, report: str, fingerprint: str, through: int) -> None:
+        with self._writing() as connection:
+            connection.execute(
+                "INSERT INTO report_state VALUES (?, ?, ?) ON CONFLICT (report) DO UPDATE SET "
+                "fingerprint = excluded.fingerprint, through = excluded.through",
+                (report, fingerprint, through),
+            )
+
+    # --- writing -------------------------------------------------------------------------------------
+
+    def create(self, layout: Layout, *, fresh: bool) -> None:
+        with self._writing() as connection:
+            if fresh:
+                connection.execute(f"DROP TABLE IF EXISTS {layout.table}")
+                connection.execute(f"DROP TABLE IF EXISTS {layout.table}_facets")
+            for statement in layout.schema():
+                connection.execute(statement)
+
+    def replace(self, layout: Layout, units: Iterable[str], rows: dict[str, list[Row]], through: int) -> None:
+        """The rows of `units` are now `rows[unit]` (none for a unit that has no rows any more)."""
+        units = list(units)
+        placeholders = ", ".join(["?"] * layout.column_count)
+        with self._writing() as connection:
+            for start in range(0, len(units), 500):
+                chunk = units[start : start + 500]
+                connection.execute(f"DELETE FROM {layout.table} WHERE unit IN ({', '.join(['?'] * len(chunk))})", chunk)
+            connection.executemany(
+                f"INSERT INTO {layout.table} VALUES ({placeholders})",
+                [layout.record(unit, index, row) for unit in units for index, row in enumerate(rows.get(unit, []))],
+            )
+            connection.executemany(
+                "INSERT INTO report_changes (report, unit, through) VALUES (?, ?, ?)",
+                [(layout.plan.name, unit, through) for unit in units],
+            )
+
+    def replace_facets(
+        self, layout: Layout, parameter: str, anchors: Sequence[str], pairs: list[tuple[str, str]]
+    ) -> None:
+        with self._writing() as connection:
+            for start in range(0, len(anchors), 500):
+                chunk = list(anchors[start : start + 500])
+                marks = ", ".join(["?"] * len(chunk))
+                connection.execute(
+                    f"DELETE FROM {layout.table}_facets WHERE param = ? AND anchor IN ({marks})", [parameter, *chunk]
+                )
+            connection.executemany(
+                f"INSERT OR IGNORE INTO {layout.table}_facets VALUES (?, ?, ?)",
+                [(parameter, value, anchor) for anchor, value in pairs],
+            )
+
+    def clear(self, layout: Layout) -> None:
+        with self._writing() as connection:
+            connection.execute(f"DELETE FROM {layout.table}")
+            connection.execute(f"DELETE FROM {layout.table}_facets")
+
+    def prune_changes(self, keep: int) -> None:
+        with self._writing() as connection:
+            connection.execute(
+                "DELETE FROM report_changes WHERE seq <= (SELECT MAX(seq) FROM report_changes) - ?", (keep,)
+            )
+
+    # --- reading -------------------------------------------------------------------------------------
+
+    def page(self, layout: Layout, bound: dict[str, Any], limit: int, offset: int, after: str | None) -> Page:
+        """Rows matching the bound parameters (name → term, None = not given), in the report's order."""
+        where, arguments = self._conditions(layout, bound)
+        if layout.plan.is_aggregate:
+            return self._aggregate_page(layout, where, arguments, limit, offset, after)
+        if after is not None:
+            where.append("(ord, unit, n) > (?, ?, ?)")
+            arguments += _cursor(after)
+        clause = f"WHERE {' AND '.join(where)}" if where else ""
+        rows = (
+            self._reader()
+            .execute(
+                f"SELECT ord, unit, n, row FROM {layout.table} {clause} ORDER BY ord, unit, n LIMIT ? OFFSET ?",
+                [*arguments, limit + 1, 0 if after is not None else offset],
+            )
+            .fetchall()
+        )
+        kept = rows[:limit]
+        last = _cursor_of(kept[-1][0], kept[-1][1], kept[-1][2]) if kept else None
+        return Page([json.loads(row[3]) for row in kept], len(rows) > limit, last if len(rows) > limit else None)
+
+    def changes_since(self, report: str, seq: int, limit: int = 1000) -> list[tuple[int, str]]:
+        return (
+            self._reader()
+            .execute(
+                "SELECT seq, unit FROM report_changes WHERE report = ? AND seq > ? ORDER BY seq LIMIT ?",
+                (report, seq, limit),
+            )
+            .fetchall()
+        )
+
+    def last_change(self) -> int:
+        return self._reader().execute("SELECT COALESCE(MAX(seq), 0) FROM report_changes").fetchone()[0]
+
+    def unit_rows(self, layout: Layout, units: Sequence[str]) -> list[dict[str, JsonValue]]:
+        if not units:
+            return []
+        found = (
+            self._reader()
+            .execute(
+                f"SELECT row FROM {layout.table} WHERE unit IN ({', '.join(['?'] * len(units))}) ORDER BY ord, unit, n",
+                list(units),
+            )
+            .fetchall()
+        )
+        return [json.loads(row[0]) for row in found]
+
+    def _conditions(self, layout: Layout, bound: dict[str, Any]) -> tuple[list[str], list[object]]:
+        where: list[str] = []
+        arguments: list[object] = []
+        for condition in layout.plan.column_filters:
+            term = bound.get(condition.parameter)
+            if term is None:
+                continue
+            value = filter_value(term, layout.parameters[condition.parameter].type)
+            where.append(f"f_{condition.column[1:]} {condition.op} ?")
+            arguments.append(value)
+        for facet in layout.plan.facet_filters:
+            term = bound.get(facet.parameter)
+            if term is None:
+                continue
+            where.append(
+                f"a_{facet.anchor[1:]} IN (SELECT anchor FROM {layout.table}_facets WHERE param = ? AND value = ?)"
+            )
+            arguments += [facet.parameter, term_text(term)]
+        return where, arguments
+
+    def _aggregate_page(
+        self, layout: Layout, where: list[str], arguments: list[object], limit: int, offset: int, after: str | None
+    ) -> Page:
+        aggregates = ", ".join(_sql_aggregate(aggregate.function, aggregate.distinct, f"g_{index}")
+                               for index, aggregate in enumerate(layout.plan.aggregates))  # fmt: skip
+        having = "HAVING ord > ?" if after is not None else ""
+        clause = f"WHERE {' AND '.join(where)}" if where else ""
+        rows = (
+            self._reader()
+            .execute(
+                f"SELECT ord, MIN(row), {aggregates} FROM {layout.table} {clause} GROUP BY ord {having} "
+                "ORDER BY ord LIMIT ? OFFSET ?",
+                [*arguments, *([after] if after is not None else []), limit + 1, 0 if after is not None else offset],
+            )
+            .fetchall()
+        )
+        kept = rows[:limit]
+        out = []
+        for row in kept:
+            groups = json.loads(row[1])
+            for aggregate, value in zip(layout.plan.aggregates, row[2:], strict=True):
+                groups[aggregate.output[1:]] = _aggregate_output(aggregate.function, value)
+            out.append(groups)
+        has_more = len(rows) > limit
+        return Page(out, has_more, kept[-1][0] if has_more and kept else None)
+
+    def close(self) -> None:
+        self._keep_alive.close()
+
+    def _writing(self) -> _Writing:
+        return _Writing(self)
+
+
+class _Writing:
+    """One write transaction on the writer's connection."""
+
+    def __init__(self, rows: ReportRows) -> None:
+        self._rows = rows
+
+    def __enter__(self) -> sqlite3.Connection:
+        self._rows._writer_lock.acquire()
+        connection = getattr(self._rows, "_writer", None)
+        if connection is None:
+            connection = self._rows._writer = self._rows._connect()  # type: ignore[attr-defined]
+        connection.execute("BEGIN IMMEDIATE")
+        return connection
+
+    def __exit__(self, kind: object, error: object, trace: object) -> None:
+        connection = self._rows._writer  # type: ignore[attr-defined]
+        try:
+            connection.execute("ROLLBACK" if kind is not None else "COMMIT")
+        finally:
+            self._rows._writer_lock.release()
+
+
+def _stored(term: Term | None) -> JsonValue:
+    return json_value(term)
+
+
+def _aggregate_input(function: str, term: Term | None) -> str | None:
+    if term is None:
+        return None
+    if function == "count":
+        return term_text(term)
+    if function == "sample":
+        return json.dumps(json_value(term))
+    return sort_key([term])
+
+
+def _sql_aggregate(function: str, distinct: bool, column: str) -> str:
+    if function == "count":
+        return f"COUNT({'DISTINCT ' if distinct else ''}{column})"
+    return f"{'MAX' if function == 'max' else 'MIN'}({column})"  # MIN serves SAMPLE: any value will do
+
+
+def _aggregate_output(function: str, value: object) -> JsonValue:
+    if value is None:
+        return None
+    if function == "count":
+        return int(value)  # type: ignore[call-overload]
+    if function == "sample":
+        loaded: JsonValue = json.loads(str(value))
+        return loaded
+    return _decoded(str(value))
+
+
+def _decoded(key: str) -> JsonValue:
+    """The JSON value a one-term sort key stands for (the inverse of encoding._sort_part)."""
+    kind, text = key[0], key[1:]
+    if kind == "2":
+        return text
+    if kind == "3":
+        bits = int(text, 16)
+        bits = bits ^ (1 << 63) if bits >> 63 else bits ^ 0xFFFFFFFFFFFFFFFF
+        return struct.unpack(">d", struct.pack(">Q", bits))[0]
+    if kind == "4":
+        return iso_time(text + "+00:00")
+    return text
+
+
+def _cursor(after: str) -> list[object]:
+    order, unit, index = json.loads(after)
+    return [order, unit, index]
+
+
+def _cursor_of(order: str, unit: str, index: int) -> str:
+    return json.dumps([order, unit, index])
+
+
+def unit_of(values: Sequence[Term]) -> str:
+    """A key (one term or several) as the text rows are stored under."""
+    return " ".join(term_text(value) for value in values)
+
+
+def iri_unit(iri: str) -> str:
+    return term_text(NamedNode(iri))
