@@ -51,11 +51,23 @@ class BackendClient:
         return response
 
     async def open_stream(
-        self, path: str, *, token: str | None = None, params: dict[str, Any] | None = None
+        self,
+        path: str,
+        *,
+        token: str | None = None,
+        params: dict[str, Any] | None = None,
+        headers: dict[str, str] | None = None,
+        timeout: httpx.Timeout | None = None,
     ) -> httpx.Response:
         """A GET whose body is still to be read, chunk by chunk (`aiter_bytes`); the caller closes it. Error
         statuses raise before any of the body is passed on."""
-        request = self._client.build_request("GET", path, params=_clean(params), headers=_with_token(None, token))
+        request = self._client.build_request(
+            "GET",
+            path,
+            params=_clean(params),
+            headers=_with_token(headers, token),
+            timeout=timeout or self._client.timeout,
+        )
         try:
             response = await self._client.send(request, stream=True)
         except httpx.HTTPError as error:

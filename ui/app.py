@@ -25,6 +25,7 @@ from segb_server.ui.routes import (
     home,
     insert,
     ledger,
+    live,
     logs,
     query,
     reports,
@@ -48,6 +49,7 @@ ROUTERS = [
     insert.router,
     clear.router,
     export.router,
+    live.router,
     logs.router,
 ]
 

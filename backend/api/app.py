@@ -22,6 +22,7 @@ from segb_server.backend.api.routes import (
     health,
     ingest,
     ledger,
+    live,
     logs,
     reports,
     shared_context,
@@ -120,6 +121,6 @@ def create_app(settings: Settings | None = None, store: Store | None = None) -> 
         )
     app.add_middleware(SecurityHeaders)
     app.add_middleware(RequestContext)  # outermost: every answer carries the id
-    for router in [*ROUTERS, reports.build_router(catalog)]:
+    for router in [*ROUTERS, live.router, reports.build_router(catalog)]:
         app.include_router(router)
     return app

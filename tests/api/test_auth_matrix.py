@@ -35,6 +35,7 @@ REQUIRED_ROLE: dict[tuple[str, str], str | None] = {
     ("GET", "/vocabulary"): PUBLIC,
     ("GET", "/reports"): "auditor",
     **{("GET", f"/reports/{name}"): "auditor" for name in REPORTS},
+    ("GET", "/reports/stream"): "auditor",
     ("GET", "/graph"): "auditor",
     ("GET", "/resource"): "auditor",
     ("GET", "/explain"): "auditor",
@@ -96,6 +97,11 @@ def call(server: LiveServer, route: tuple[str, str], bearer: str | None) -> http
     headers = dict(spec.pop("headers", {}))  # type: ignore[call-overload]
     if bearer is not None:
         headers["Authorization"] = f"Bearer {bearer}"
+    if path.endswith("/stream"):  # an endless event stream: its status and headers are the answer
+        with httpx.stream(method, url, headers=headers, timeout=30) as streamed:
+            if streamed.status_code >= 400:
+                streamed.read()
+            return streamed
     return httpx.request(method, url, headers=headers, timeout=30, **spec)  # type: ignore[arg-type]
 
 

@@ -219,15 +219,14 @@ class ReportRows:
         last = _cursor_of(kept[-1][0], kept[-1][1], kept[-1][2]) if kept else None
         return Page([json.loads(row[3]) for row in kept], len(rows) > limit, last if len(rows) > limit else None)
 
-    def changes_since(self, report: str, seq: int, limit: int = 1000) -> list[tuple[int, str]]:
-        return (
-            self._reader()
-            .execute(
-                "SELECT seq, unit FROM report_changes WHERE report = ? AND seq > ? ORDER BY seq LIMIT ?",
-                (report, seq, limit),
-            )
-            .fetchall()
-        )
+    def changes_since(self, seq: int, limit: int = 1000) -> list[tuple[int, str, str]]:
+        """(seq, report, unit) of the changes after `seq`, oldest first."""
+        return self._reader().execute(
+            "SELECT seq, report, unit FROM report_changes WHERE seq > ? ORDER BY seq LIMIT ?", (seq, limit)
+        ).fetchall()
+
+    def oldest_change(self) -> int:
+        return self._reader().execute("SELECT COALESCE(MIN(seq), 0) FROM report_changes").fetchone()[0]
 
     def last_change(self) -> int:
         return self._reader().execute("SELECT COALESCE(MAX(seq), 0) FROM report_changes").fetchone()[0]

@@ -1,0 +1,35 @@
+"""/live/reports: the API's stream of report changes (Server-Sent Events), relayed with the viewer's session,
+so the page's script connects to its own origin (the CSP allows nothing else) and no token is ever in a URL."""
+
+from __future__ import annotations
+
+import httpx
+from fastapi import APIRouter, Request
+from fastapi.responses import StreamingResponse
+from starlette.background import BackgroundTask
+
+from segb_server.ui.pages import backend, token
+
+router = APIRouter()
+
+# The stream stays open: no read timeout (the API sends a comment every 15 s), a bounded connect.
+STREAM_TIMEOUT = httpx.Timeout(10.0, read=None)
+
+
+@router.get("/live/reports")
+async def live_reports(request: Request) -> StreamingResponse:
+    # A reconnecting EventSource sends Last-Event-ID; a page resuming after a pause passes `after=` instead.
+    resume = request.headers.get("last-event-id") or request.query_params.get("after")
+    answer = await backend(request).open_stream(
+        "/reports/stream",
+        token=token(request),
+        params={"report": request.query_params.getlist("report")},
+        headers={"Last-Event-ID": resume} if resume else None,
+        timeout=STREAM_TIMEOUT,
+    )
+    return StreamingResponse(
+        answer.aiter_raw(),
+        media_type="text/event-stream",
+        headers={"Cache-Control": "no-store", "X-Accel-Buffering": "no"},
+        background=BackgroundTask(answer.aclose),
+    )
