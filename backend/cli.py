@@ -21,7 +21,7 @@ from tqdm import tqdm
 
 from segb_server.backend.config import Settings
 from segb_server.backend.services.errors import ServiceError
-from segb_server.backend.store.base import Store, StoreError
+from segb_server.backend.store.base import StoreError
 
 if TYPE_CHECKING:  # the services are imported by the commands that need them, not whenever the CLI starts
     from segb_server.backend.services.container import Services
@@ -144,11 +144,10 @@ def _serve(args: argparse.Namespace) -> int:
         return _fail("--demo fills the API's store: drop --only ui")
     if args.only in (None, "api"):
         _check_catalog(settings)
-    store = _demo_store(settings) if args.demo else None
     configs = []
     if args.only in (None, "api"):
         # No uvicorn access log: the API logs one line per request itself (backend/api/request_context.py).
-        api = create_app(settings, store=store)
+        api = create_app(settings, demo=args.demo)
         configs.append(
             uvicorn.Config(
                 api,
@@ -176,13 +175,9 @@ def _serve(args: argparse.Namespace) -> int:
         print(f"SEGB API  http://{settings.host}:{settings.api_port}/docs", file=sys.stderr)
     if args.only in (None, "ui"):
         print(f"SEGB UI   http://{settings.host}:{settings.ui_port}/reports", file=sys.stderr)
-    try:
-        # uvicorn's own choice of loop (uvloop when installed), which `asyncio.run` would bypass.
-        with asyncio.Runner(loop_factory=configs[0].get_loop_factory()) as runner:
-            runner.run(_serve_together([_QuietServer(config) for config in configs]))
-    finally:
-        if store is not None:
-            store.close()
+    # uvicorn's own choice of loop (uvloop when installed), which `asyncio.run` would bypass.
+    with asyncio.Runner(loop_factory=configs[0].get_loop_factory()) as runner:
+        runner.run(_serve_together([_QuietServer(config) for config in configs]))
     return 0
 
 
@@ -192,20 +187,6 @@ def _check_catalog(settings: Settings) -> None:
     from segb_server.backend.services.sparql.catalog import Catalog
 
     Catalog(settings.sparql_dir, required=REQUIRED_QUERIES)
-
-
-def _demo_store(settings: Settings) -> Store:
-    """The store, opened here rather than by the app so the demo is in it before the first request."""
-    from segb_server.backend.demo import load_demo
-    from segb_server.backend.store.factory import open_store
-
-    store = open_store(settings)
-    try:
-        load_demo(settings, store)
-    except BaseException:
-        store.close()
-        raise
-    return store
 
 
 class _QuietServer(uvicorn.Server):

@@ -29,12 +29,10 @@ from pyoxigraph import RdfFormat
 from rdflib import Graph
 
 from segb_server.backend.api.routes.shared_context import ResolveRequest
-from segb_server.backend.config import Settings
-from segb_server.backend.services.container import build_services
+from segb_server.backend.services.container import Services
 from segb_server.backend.services.errors import ServiceError
 from segb_server.backend.services.ingest.payloads import RdfPayload
 from segb_server.backend.services.ingest.service import IngestResult
-from segb_server.backend.store.base import Store
 
 if TYPE_CHECKING:  # the robot code is imported when a demo is built, not whenever the CLI starts
     from semantic_log_generator.types import SharedEventRequest
@@ -49,6 +47,7 @@ logger = logging.getLogger("segb.demo")
 DEMO_USER = "segb-demo"
 ARI_ROBOT = "https://example.org/segb/robots/ari/v1/robot_ari"
 CARLOS_AT = datetime(2026, 3, 10, 10, 1, 0, tzinfo=UTC)
+SETTLE_SECONDS = 60.0
 OVERHEARD_LATE = timedelta(seconds=0.5)  # close enough to be a candidate, too late (and unattributed) to match
 
 
@@ -69,21 +68,20 @@ def demo_turtle(resolver: Resolver) -> str:
     return merged.serialize(format="turtle")
 
 
-def load_demo(settings: Settings, store: Store) -> IngestResult | None:
-    """Ingest the demo into `store` when it holds nothing, through the API's own ingest service and
-    ledger (so the receipt tells where the data came from), resolving the robots' shared events with the
-    API's own shared-context service; None when the store already has data."""
-    present = store.count()
+def load_demo(services: Services) -> IngestResult | None:
+    """Ingest the demo when the store holds nothing, through the server's own ingest service and journal (so
+    the receipt tells where the data came from), resolving the robots' shared events with its own
+    shared-context service; None when the store already has data. Blocking: run it in a worker thread."""
+    present = services.store.count()
     if present:
         logger.info("demo dataset not loaded: the store already holds %d triples", present)
         return None
-    services = build_services(settings, store)
-    try:
-        turtle = demo_turtle(lambda robot: _in_process(services.shared_context, robot))
-        payload = RdfPayload(turtle.encode("utf-8"), RdfFormat.TURTLE, claimed_user=DEMO_USER)
-        result = services.ingest.ingest(payload, actor=DEMO_USER)
-    finally:
-        services.close()
+    turtle = demo_turtle(lambda robot: _in_process(services.shared_context, robot))
+    payload = RdfPayload(turtle.encode("utf-8"), RdfFormat.TURTLE, claimed_user=DEMO_USER)
+    result = services.ingest.ingest(payload, actor=DEMO_USER)
+    # The first page a newcomer opens shows the demo: wait until the store and the reports' rows have it.
+    if services.applier.wait_for(result.sequence, SETTLE_SECONDS) and services.reports.maintainer is not None:
+        services.reports.maintainer.wait_until_current(SETTLE_SECONDS)
     logger.info(
         "demo dataset loaded: %d triples (robots ARI and TIAGo, humans Maria and Carlos; log_id=%s)",
         result.triples_new,

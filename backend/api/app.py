@@ -32,6 +32,7 @@ from segb_server.backend.api.routes import (
     vocabulary,
 )
 from segb_server.backend.config import Settings
+from segb_server.backend.demo import load_demo
 from segb_server.backend.services.container import REQUIRED_QUERIES, build_services
 from segb_server.backend.services.ops.server_log import ServerLog
 from segb_server.backend.services.ops.store_monitor import StoreMonitor
@@ -67,8 +68,9 @@ ROUTERS = [
 ]
 
 
-def create_app(settings: Settings | None = None, store: Store | None = None) -> FastAPI:
-    """The API app. With `store` given, the app uses it and leaves closing it to the caller."""
+def create_app(settings: Settings | None = None, store: Store | None = None, *, demo: bool = False) -> FastAPI:
+    """The API app. With `store` given, the app uses it and leaves closing it to the caller. With `demo`, the
+    demo dataset is loaded into an empty store before the first request is served."""
     settings = settings or Settings()
     # Loaded here, before the app exists: the report routes and their documentation are made from it.
     catalog = Catalog(settings.sparql_dir, required=REQUIRED_QUERIES)
@@ -84,6 +86,9 @@ def create_app(settings: Settings | None = None, store: Store | None = None) -> 
             active_store, max_retry_seconds=settings.store_retry_max_seconds, check_seconds=settings.store_check_seconds
         )
         app.state.services.start()
+        if demo:
+            # The app's own services: with STORE=memory the journal and resolver exist nowhere else.
+            await anyio.to_thread.run_sync(load_demo, app.state.services)
         try:
             async with anyio.create_task_group() as background:
                 background.start_soon(monitor.run)

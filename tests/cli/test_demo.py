@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import signal
 import subprocess
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -123,6 +124,27 @@ def test_serve_demo_loads_the_dataset_into_an_empty_store_only(tmp_path: Path) -
     assert second.shared_contexts == SHARED_CONTEXTS
 
 
+def test_serve_demo_in_memory_keeps_the_demo_in_the_servers_own_journal_and_resolver(tmp_path: Path) -> None:
+    """With STORE=memory the journal and resolver live in the server's memory: the demo must go through the
+    server's own, or its receipt and shared events are lost and the journal's sequence restarts under the
+    store's, and the next robot's post is taken for one already applied."""
+    robot_log = """
+        @prefix prov: <http://www.w3.org/ns/prov#> .
+        <https://example.org/robot/after-demo> a prov:SoftwareAgent ; prov:wasAssociatedWith <https://example.org/h/z> .
+    """
+
+    def publish(api: str) -> None:
+        answer = httpx.post(f"{api}/ttl", json={"ttl_content": robot_log, "user": "after-demo"}, timeout=30)
+        assert answer.status_code == 201, answer.text
+        assert answer.json()["triples_new"] == 2
+
+    served = serve_demo(tmp_path, {"STORE": "memory"}, then=publish)
+    assert "demo dataset loaded" in served.log
+    assert served.ledger == 1
+    assert served.shared_contexts == SHARED_CONTEXTS
+    assert served.after_triples == served.triples + 2  # the robot's post reached the store
+
+
 @dataclass(frozen=True)
 class Served:
     log: str
@@ -131,14 +153,15 @@ class Served:
     ledger: int  # receipts
     page: str  # the UI's /reports page
     shared_contexts: dict[str, int]
+    after_triples: int  # after `then` ran
 
 
-def serve_demo(data_dir: Path) -> Served:
+def serve_demo(data_dir: Path, env: dict[str, str] | None = None, then: Callable[[str], None] | None = None) -> Served:
     """Start `segb serve --demo` on free ports, read what a newcomer would see, stop it."""
     api_port, ui_port = free_port(), free_port()
     process = subprocess.Popen(
         [*SEGB, "serve", "--demo", "--data-dir", str(data_dir)],
-        env=clean_env({"API_PORT": str(api_port), "UI_PORT": str(ui_port)}),
+        env=clean_env({"API_PORT": str(api_port), "UI_PORT": str(ui_port), **(env or {})}),
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
         text=True,
@@ -152,8 +175,11 @@ def serve_demo(data_dir: Path) -> Served:
         page = wait_for(f"http://127.0.0.1:{ui_port}/reports").text
         contexts = shared_context(api)
         assert_nothing_overstated(api)
+        if then is not None:
+            then(api)  # answered once the store applied it (INGEST_ACK=auto on the embedded store)
+        after_triples = triple_count(api)
     finally:
         process.send_signal(signal.SIGTERM)
         log, _ = process.communicate(timeout=30)
     assert process.returncode == 0, log
-    return Served(log, triples, participants, ledger, page, contexts)
+    return Served(log, triples, participants, ledger, page, contexts, after_triples)
