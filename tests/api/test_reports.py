@@ -237,6 +237,20 @@ def test_paging_with_limit_offset_and_has_more(published: Published) -> None:
     assert (first["rows"] + rest["rows"], rest["has_more"]) == (everything, False)
 
 
+@pytest.mark.parametrize("store", ["oxigraph", "virtuoso"])
+def test_paging_by_cursor_returns_every_row_once_in_order(published: Published, store: str) -> None:
+    everything = published.rows(store, "conversations")
+    pages, after = [], None
+    while True:
+        body = published.get(store, "/reports/conversations", limit=2, **({"after": after} if after else {})).json()
+        assert body["served_from"] == "rows"
+        pages += body["rows"]
+        if not body["has_more"]:
+            break
+        after = body["next"]
+    assert pages == everything
+
+
 @pytest.mark.parametrize(
     ("path", "params", "status", "named"),
     [
@@ -248,6 +262,9 @@ def test_paging_with_limit_offset_and_has_more(published: Published) -> None:
         ("/reports/extreme-emotions", {"threshold": "high"}, 422, "threshold"),
         ("/reports/conversations", {"limit": "0"}, 422, "limit"),
         ("/reports/conversations", {"format": "xml"}, 422, "format"),
+        ("/reports/conversations", {"after": "nonsense"}, 422, "after"),
+        ("/reports/conversations", {"after": '["2", "x"]'}, 422, "after"),
+        ("/reports/conversations", {"after": "WyIyIiwgIngiLCAieSJd"}, 422, "after"),  # base64 of ["2", "x", "y"]
     ],
 )
 def test_bad_requests_name_the_problem(published: Published, path: str, params: dict, status: int, named: str) -> None:

@@ -111,12 +111,15 @@ class History:
         sender = [f"{message} {term('schema:sender')} {iri('human', human)} ."] if rng.random() < 0.6 else []
         model = [f"{activity} {term('segb:usedMLModel')} {iri('model', rng.choice(['cnn', 'llm']))} ."]
         annotation, emotion = iri("annotation", f"n{n}"), iri("emotion", f"x{n}")
+        target = iri("human", human) if rng.random() < 0.7 else iri("robot", robot)
+        category = term("onyx:" + rng.choice(["joy", "anger"]))
+        intensity = f'"{rng.choice(["0.2", "0.8", "0.95"])}"^^{term("xsd:decimal")}'
         feeling = [
             f"{activity} {term('segb:producedEntityResult')} {annotation} .",
             f"{annotation} {term('onyx:hasEmotion')} {emotion} .",
-            f"{annotation} {term('oa:hasTarget')} {iri('human', human) if rng.random() < 0.7 else iri('robot', robot)} .",
-            f"{emotion} {term('onyx:hasEmotionCategory')} {term('onyx:' + rng.choice(['joy', 'anger']))} .",
-            f'{emotion} {term("onyx:hasEmotionIntensity")} "{rng.choice(["0.2", "0.8", "0.95"])}"^^{term("xsd:decimal")} .',
+            f"{annotation} {term('oa:hasTarget')} {target} .",
+            f"{emotion} {term('onyx:hasEmotionCategory')} {category} .",
+            f"{emotion} {term('onyx:hasEmotionIntensity')} {intensity} .",
         ]
         state = iri("state", f"s{n}")
         snapshot = [

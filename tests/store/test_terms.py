@@ -31,7 +31,7 @@ def test_values_open_the_outer_group_when_a_subquery_comes_first_in_the_text(sto
 
 
 def test_rows_of_values_join_the_whole_group_filters_included(store: Store) -> None:
-    query = f"SELECT ?s WHERE {{ ?s <{EX}p> ?o OPTIONAL {{ ?s <{EX}q> ?q }} FILTER (?o != \"2\") }}"
+    query = f'SELECT ?s WHERE {{ ?s <{EX}p> ?o OPTIONAL {{ ?s <{EX}q> ?q }} FILTER (?o != "2") }}'
     bound = bind_rows(query, ["s"], [[NamedNode(EX + "a")], [NamedNode(EX + "b")], [NamedNode(EX + "c")]])
     assert names(store, bound) == [EX + "a"]  # b is filtered out, c has no triple
 

@@ -26,7 +26,7 @@ KEEP_ALIVE_SECONDS = 15.0
     "/reports/stream",
     summary="Changes of the reports, live (Server-Sent Events)",
     description=(
-        "An `event: change` whenever rows of a report changed, with `data: {\"report\": name, \"units\": [...]}` "
+        'An `event: change` whenever rows of a report changed, with `data: {"report": name, "units": [...]}` '
         "(the keys whose rows were replaced) and an increasing `id`; send it back as `Last-Event-ID` to resume. "
         "`?report=` (repeatable) limits the stream to those reports. `event: reset` when the changes since that id "
         "are no longer kept (reload). A comment every 15 s keeps idle connections open. Reports evaluated in full "

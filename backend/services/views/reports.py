@@ -7,7 +7,7 @@ import io
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from segb_server.backend.services.errors import NotFound
+from segb_server.backend.services.errors import Conflict, InvalidParameter, NotFound
 from segb_server.backend.services.ops.result_cache import DataVersion, ResultCache
 from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, Catalog, CatalogQuery, paged
 from segb_server.backend.services.views.materialized.maintainer import ReportMaintainer
@@ -125,6 +125,14 @@ class ReportService:
             if page is not None:
                 columns = [name[1:] for name in self.maintainer.reports[query.name].layout.plan.columns]
                 return ReportTable(query, columns, page.rows, limit, offset, page.has_more, page.after, "rows")
+        if after is not None:
+            # Answering the first page instead would send a client paging by cursor round in circles.
+            if self.maintainer is None or query.name not in self.maintainer.reports:
+                raise InvalidParameter("after", f"report '{name}' is evaluated in full: page it with `offset`")
+            raise Conflict(
+                f"Report '{name}' is being rebuilt and cannot resume from a cursor now; start again from its first "
+                "page (without `after`)."
+            )
         key = ("report", name, tuple(sorted((k, str(v)) for k, v in bindings.items())), limit, offset)
         return self.cache.get(key, lambda: self._compute(query, bindings, limit, offset))
 

@@ -64,6 +64,9 @@ class ReportMaintainer:
         self.unsupported: dict[str, str] = {}
         self._queue: queue.Queue[Applied | _Marker | None] = queue.Queue()
         self._thread: threading.Thread | None = None
+        self._stopping = (
+            threading.Event()
+        )  # ends the retry waits too: a store that never returns must not hold shutdown
         self.last_error: str | None = None
         self.through = 0  # the journal entry the rows are current through
 
@@ -83,6 +86,7 @@ class ReportMaintainer:
         self._thread.start()
 
     def stop(self) -> None:
+        self._stopping.set()
         self._queue.put(None)
         if self._thread is not None:
             self._thread.join(timeout=30)
@@ -113,7 +117,8 @@ class ReportMaintainer:
             except StoreError as error:
                 self.last_error = str(error)
                 logger.warning("building reports failed (%s); retrying", error)
-                time.sleep(2)
+                if self._stopping.wait(2):
+                    return
         while True:
             steps: list[Applied | _Marker | None] = [self._queue.get()]
             while not self._queue.empty() and len(steps) < 200:
@@ -131,7 +136,8 @@ class ReportMaintainer:
                 except StoreError as error:
                     self.last_error = str(error)
                     logger.warning("keeping reports current failed (%s); retrying", error)
-                    time.sleep(1)
+                    if self._stopping.wait(1):
+                        return
                 except Exception:
                     logger.exception("keeping reports current failed; building them again")
                     for materialized in self.reports.values():

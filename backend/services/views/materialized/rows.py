@@ -8,6 +8,7 @@ that apply before grouping (a time window) stay exact.
 
 from __future__ import annotations
 
+import base64
 import json
 import sqlite3
 import struct
@@ -19,6 +20,7 @@ from typing import Any
 
 from pyoxigraph import NamedNode
 
+from segb_server.backend.services.errors import InvalidParameter
 from segb_server.backend.services.sparql.catalog import Parameter
 from segb_server.backend.services.views.materialized.encoding import filter_value, sort_key
 from segb_server.backend.services.views.materialized.plan import ReportPlan
@@ -221,9 +223,11 @@ class ReportRows:
 
     def changes_since(self, seq: int, limit: int = 1000) -> list[tuple[int, str, str]]:
         """(seq, report, unit) of the changes after `seq`, oldest first."""
-        return self._reader().execute(
-            "SELECT seq, report, unit FROM report_changes WHERE seq > ? ORDER BY seq LIMIT ?", (seq, limit)
-        ).fetchall()
+        return (
+            self._reader()
+            .execute("SELECT seq, report, unit FROM report_changes WHERE seq > ? ORDER BY seq LIMIT ?", (seq, limit))
+            .fetchall()
+        )
 
     def oldest_change(self) -> int:
         return self._reader().execute("SELECT COALESCE(MIN(seq), 0) FROM report_changes").fetchone()[0]
@@ -365,12 +369,26 @@ def _decoded(key: str) -> JsonValue:
 
 
 def _cursor(after: str) -> list[object]:
-    order, unit, index = json.loads(after)
-    return [order, unit, index]
+    """The position a `next` cursor names. Cursors come back from clients: anything but one this server
+    made is refused by name."""
+    try:
+        decoded = json.loads(base64.urlsafe_b64decode(after.encode("ascii") + b"=" * (-len(after) % 4)))
+    except (ValueError, UnicodeError):  # binascii.Error and JSONDecodeError are ValueErrors
+        decoded = None
+    if not (
+        isinstance(decoded, list)
+        and len(decoded) == 3
+        and isinstance(decoded[0], str)
+        and isinstance(decoded[1], str)
+        and isinstance(decoded[2], int)
+    ):
+        raise InvalidParameter("after", "not a cursor this server made: pass the `next` of the previous page")
+    return decoded
 
 
 def _cursor_of(order: str, unit: str, index: int) -> str:
-    return json.dumps([order, unit, index])
+    """Opaque and URL-safe: clients pass it back as it is."""
+    return base64.urlsafe_b64encode(json.dumps([order, unit, index]).encode()).decode("ascii").rstrip("=")
 
 
 def unit_of(values: Sequence[Term]) -> str:

@@ -1,0 +1,96 @@
+"""A report is added by dropping a `.rq` file in `sparql/reports/`, no Python: with a `# key:` line its rows
+are kept current; with a construct the rows cannot follow (here MINUS) it is evaluated in full, and says so."""
+
+from __future__ import annotations
+
+import shutil
+from collections.abc import Iterator
+from pathlib import Path
+
+import httpx
+import pytest
+
+from segb_server.backend.api.app import create_app
+from segb_server.backend.config import PACKAGE_ROOT
+from tests.conftest import make_settings
+from tests.support.live_server import LiveServer
+from tests.support.settle import settle
+
+PREFIXES = """PREFIX rdf: <http://www.w3.org/1999/02/22-rdf-syntax-ns#>
+PREFIX foaf: <http://xmlns.com/foaf/0.1/>
+PREFIX prov: <http://www.w3.org/ns/prov#>
+"""
+# Agents with a first name: kept as rows, one row per agent.
+NAMED = f"""# title: Named agents
+# key: ?agent
+# description: Every agent with a first name.
+{PREFIXES}
+SELECT ?agent ?name WHERE {{
+  ?agent foaf:firstName ?name .
+}}
+ORDER BY ?name ?agent
+"""
+# Agents without a first name: MINUS is beyond what the rows can follow.
+UNNAMED = f"""# title: Unnamed agents
+# key: ?agent
+# description: Every agent without a first name.
+{PREFIXES}
+SELECT ?agent WHERE {{
+  ?agent a prov:Agent .
+  MINUS {{ ?agent foaf:firstName ?name }}
+}}
+ORDER BY ?agent
+"""
+
+
+def people(count: int, start: int = 0) -> str:
+    lines = [f"<https://example.org/p/{i:03d}> a <http://www.w3.org/ns/prov#Agent> ." for i in range(start, count)]
+    lines += [
+        f'<https://example.org/p/{i:03d}> <http://xmlns.com/foaf/0.1/firstName> "P{i:03d}" .'
+        for i in range(start, count)
+        if i % 2 == 0
+    ]
+    return "\n".join(lines)
+
+
+@pytest.fixture
+def server(tmp_path: Path) -> Iterator[str]:
+    sparql = tmp_path / "sparql"
+    shutil.copytree(PACKAGE_ROOT / "sparql", sparql)
+    (sparql / "reports" / "named-agents.rq").write_text(NAMED)
+    (sparql / "reports" / "unnamed-agents.rq").write_text(UNNAMED)
+    with LiveServer(create_app(make_settings(sparql_dir=sparql))) as live:
+        yield live.url
+
+
+def post(url: str, turtle: str) -> None:
+    answer = httpx.post(f"{url}/ttl", json={"ttl_content": turtle, "user": "test"}, timeout=30)
+    assert answer.status_code == 201, answer.text
+
+
+def test_a_keyed_report_is_kept_as_rows_and_follows_new_posts(server: str) -> None:
+    post(server, people(10))
+    settle(server)
+    body = httpx.get(f"{server}/reports/named-agents", params={"limit": 3}, timeout=30).json()
+    assert body["served_from"] == "rows"
+    assert [row["name"] for row in body["rows"]] == ["P000", "P002", "P004"]
+    rest = httpx.get(f"{server}/reports/named-agents", params={"limit": 3, "after": body["next"]}, timeout=30).json()
+    assert [row["name"] for row in rest["rows"]] == ["P006", "P008"]
+    assert rest["has_more"] is False
+
+    post(server, people(12, start=10))
+    settle(server)
+    names = [row["name"] for row in httpx.get(f"{server}/reports/named-agents", timeout=30).json()["rows"]]
+    assert names == ["P000", "P002", "P004", "P006", "P008", "P010"]
+
+
+def test_a_report_the_rows_cannot_follow_is_evaluated_in_full(server: str) -> None:
+    post(server, people(6))
+    settle(server)
+    body = httpx.get(f"{server}/reports/unnamed-agents", timeout=30).json()
+    assert body["served_from"] == "query"
+    assert body["next"] is None
+    assert [row["agent"] for row in body["rows"]] == [f"https://example.org/p/{i:03d}" for i in (1, 3, 5)]
+    refused = httpx.get(f"{server}/reports/unnamed-agents", params={"after": body["rows"][0]["agent"]}, timeout=30)
+    assert refused.status_code == 422
+    assert "after" in refused.json()["detail"] and "offset" in refused.json()["detail"]
