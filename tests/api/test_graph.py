@@ -59,6 +59,28 @@ def test_resource_lists_triples_both_ways_with_labels(api: LiveServer) -> None:
     assert ("prov:wasDerivedFrom", str(scenario.iris["ari_1"])) in incoming
 
 
+def test_a_resource_many_things_point_at_is_read_a_page_at_a_time(api: LiveServer) -> None:
+    """A robot after a month is the object of one link per activity: the details read the first 500 and say
+    more exist; an explanation around one of its activities still names the robot and tells only that act."""
+    scenario = lobby()
+    scenario.publish_all(api.url)
+    tiago = str(scenario.iris["tiago"])
+    busy = "\n".join(
+        f"<https://example.org/busy/a{i}> <http://www.gsi.upm.es/ontologies/segb/ns#wasPerformedBy> <{tiago}> ."
+        for i in range(600)
+    )
+    assert httpx.post(f"{api.url}/ttl", json={"ttl_content": busy}, timeout=60).status_code == 201
+    body = get(api, "/resource", iri=tiago).json()
+    assert len(body["incoming"]) == 500 and body["incoming_truncated"] is True
+    assert body["incoming"] == sorted(body["incoming"], key=lambda s: (s["predicate"], str(s["value"])))
+    small = get(api, "/resource", iri=str(scenario.iris["maria_1"])).json()
+    assert small["incoming_truncated"] is False
+
+    story = get(api, "/explain", iri=str(scenario.iris["juan_1"])).json()
+    assert {step["robot"]["label"] for step in story["steps"]} == {"TIAGo"}
+    assert not any("busy" in step["activity"] for step in story["steps"])
+
+
 def test_explain_a_reply_gives_what_was_heard_the_models_and_the_trigger_in_order(api: LiveServer) -> None:
     scenario = lobby()
     scenario.publish_all(api.url)

@@ -45,6 +45,24 @@ def test_graph_page_draws_searches_and_opens_node_details(ui_stack: UiStack, pag
     assert page.console_errors == []
 
 
+def test_node_details_say_when_more_statements_point_at_the_node(ui_stack: UiStack, page: Any) -> None:
+    scenario = lobby()
+    scenario.publish_all(ui_stack.api_url)
+    tiago = str(scenario.iris["tiago"])
+    busy = "\n".join(
+        f"<https://example.org/busy/a{i}> <http://www.gsi.upm.es/ontologies/segb/ns#wasPerformedBy> <{tiago}> ."
+        for i in range(600)
+    )
+    assert httpx.post(f"{ui_stack.api_url}/ttl", json={"ttl_content": busy}, timeout=60).status_code == 201
+    open_graph(page, f"{ui_stack.ui_url}/kg-graph?" + str(httpx.QueryParams({"focus": tiago, "depth": "0"})))
+    page.fill("#graph-search-input", "TIAGo")
+    page.click("#graph-search button")
+    page.wait_for_selector("#graph-panel[data-iri]")
+    note = page.locator("#graph-panel .incoming-truncated")
+    assert "Only the first 500 incoming statements are listed" in note.inner_text()
+    assert page.console_errors == []
+
+
 def test_graph_page_filters_by_robot(ui_stack: UiStack, page) -> None:  # type: ignore[no-untyped-def]
     scenario = lobby()
     scenario.publish_all(ui_stack.api_url)

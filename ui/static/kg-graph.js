@@ -532,6 +532,11 @@
       parts.push(actions);
       parts.push(statementTable("Outgoing", resource.outgoing));
       parts.push(statementTable("Incoming", resource.incoming));
+      if (resource.incoming_truncated) {
+        parts.push(el("p", "Only the first " + resource.incoming.length + " incoming statements are listed; " +
+          "more point at this resource. Expand its neighbours or query it in SPARQL to see them all.",
+          "muted incoming-truncated"));
+      }
       panel.replaceChildren.apply(panel, parts);
       panel.dataset.iri = resource.iri;
       if (moveFocus) { heading.focus(); }

@@ -8,7 +8,7 @@ Literals only name and place nodes; the rest are details fetched per node (`reso
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Iterable
+from collections.abc import Collection, Iterable
 from dataclasses import dataclass, field
 from datetime import datetime
 
@@ -16,9 +16,10 @@ from pyoxigraph import Literal, NamedNode
 
 from segb_server.backend.services.errors import InvalidParameter
 from segb_server.backend.services.ops.result_cache import DataVersion, ResultCache
-from segb_server.backend.services.sparql.catalog import Catalog
+from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, Catalog, paged
 from segb_server.backend.services.views.term_values import iso_time, json_value
 from segb_server.backend.store.base import Store, Term, select
+from segb_server.backend.store.terms import bind_rows
 from segb_server.backend.vocabulary import KINDS, PREFIXES, Kind, compact, kind_of
 
 RDF_TYPE = PREFIXES["rdf"] + "type"
@@ -39,6 +40,7 @@ ATTRIBUTED_TO = PREFIXES["prov"] + "wasAttributedTo"
 PROV = PREFIXES["prov"]
 MAX_LABEL = 60
 MAX_NODES = 20_000
+INCOMING_LIMIT = 500  # statements pointing at one resource, read at once
 
 
 @dataclass
@@ -231,10 +233,21 @@ class GraphService:
             "matches": matches,
         }
 
-    def resource(self, iri: str) -> dict[str, object]:
-        """Every triple about one resource, both directions, with labels; blocking (store I/O)."""
+    def resource(
+        self, iri: str, *, incoming: Collection[str] | None = None, incoming_limit: int = INCOMING_LIMIT
+    ) -> dict[str, object]:
+        """Every triple from one resource and up to `incoming_limit` pointing at it (only those with the
+        `incoming` predicates when given), with labels; blocking (store I/O). A robot after a month of logs is
+        the object of hundreds of thousands of triples: `incoming_truncated` says when some were left out."""
         outgoing = self._statements("graph/resource-out", iri)
-        incoming = self._statements("graph/resource-in", iri)
+        query = self.catalog.get("graph/resource-in")
+        text, bindings = query.text, query.bindings({"iri": iri})
+        if incoming is not None:  # one VALUES row per (resource, predicate) instead of the resource alone
+            rows: list[list[Term | None]] = [[NamedNode(iri), NamedNode(p)] for p in sorted(incoming)]
+            text, bindings = bind_rows(text, [PARAMETER_VARIABLE_PREFIX + "iri", "predicate"], rows), {}
+        found = self._statements_of(select(self.store, paged(text, incoming_limit + 1, None), bindings).rows)
+        truncated = len(found) > incoming_limit
+        incoming_statements = sorted(found[:incoming_limit], key=lambda s: (s["predicate"], str(s["value"])))
         node = Node(iri)
         for statement in outgoing:
             predicate, value = str(statement["predicate"]), str(statement["value"])
@@ -246,11 +259,19 @@ class GraphService:
                 node.labels.setdefault(predicate, value)
         node.kind = kind_of(node.types, timestamped=GENERATED_AT in node.times)
         node.time = next((node.times[p] for p in TIMES if p in node.times), None)
-        return {**node.as_json(), "iri": iri, "outgoing": outgoing, "incoming": incoming}
+        return {
+            **node.as_json(),
+            "iri": iri,
+            "outgoing": outgoing,
+            "incoming": incoming_statements,
+            "incoming_truncated": truncated,
+        }
 
     def _statements(self, query_name: str, iri: str) -> list[dict[str, object]]:
         query = self.catalog.get(query_name)
-        rows = select(self.store, query.text, query.bindings({"iri": iri})).rows
+        return self._statements_of(select(self.store, query.text, query.bindings({"iri": iri})).rows)
+
+    def _statements_of(self, rows: list[dict[str, Term]]) -> list[dict[str, object]]:
         statements = []
         for row in rows:
             value = row["value"]
