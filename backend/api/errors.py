@@ -46,6 +46,7 @@ STATUS_BY_ERROR: list[tuple[type[Exception], int]] = [
     (service_errors.InvalidPayload, 422),
     (service_errors.InvalidParameter, 422),
     (ReferenceQueryRefused, 422),
+    (service_errors.ViewNotReady, 503),
     (QueryTimeout, 503),
     (QueryTooBig, 503),
     (StoreUnavailable, 503),

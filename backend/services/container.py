@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import uuid
 from dataclasses import dataclass
 
 from segb_server.backend.config import Settings
@@ -18,17 +17,20 @@ from segb_server.backend.services.sparql.catalog import Catalog
 from segb_server.backend.services.sparql.runner import QueryRunner, query_runner
 from segb_server.backend.services.views.explain import ExplainService
 from segb_server.backend.services.views.graph import GraphService
+from segb_server.backend.services.views.graph_index import GraphIndex
 from segb_server.backend.services.views.materialized.maintainer import ReportMaintainer
 from segb_server.backend.services.views.materialized.rows import ReportRows
+from segb_server.backend.services.views.projector import Projector
 from segb_server.backend.services.views.reports import FOLDER as REPORTS_FOLDER
 from segb_server.backend.services.views.reports import ReportService
 from segb_server.backend.store.base import Store
 
 # What the reports, the graph explorer and the explanations run; without them the server must not start.
-REQUIRED_QUERIES = ("reports/", "graph/elements", "graph/resource-in", "graph/resource-out")
+REQUIRED_QUERIES = ("reports/", "graph/resource-in", "graph/resource-out")
 # Stores written only through this server (the journal's applier), whose cached results a write invalidates.
 OWNED_STORES = {"oxigraph", "memory"}
 REPORTS_FILE = "reports.sqlite3"  # the reports' rows, kept current; rebuilt from the store when missing
+GRAPH_FILE = "graph.sqlite3"  # the graph index, likewise
 
 
 @dataclass
@@ -44,18 +46,20 @@ class Services:
     explain: ExplainService
     shared_context: SharedContextService
     queries: QueryRunner
+    views: Projector  # keeps the reports' rows and the graph index current
     server_log: ServerLog | None = None  # the API's own log; None where nothing serves it (the CLI, the demo)
 
     def start(self) -> None:
-        """Start the background work of a serving API: applying the journal, keeping reports current."""
+        """Start the background work of a serving API: applying the journal, keeping the views current."""
         self.applier.start()
-        if self.reports.maintainer is not None:
-            self.reports.maintainer.start()
+        self.views.start()
 
     def close(self) -> None:
         self.applier.stop()
+        self.views.stop()
+        self.graph.index.close()
         if self.reports.maintainer is not None:
-            self.reports.maintainer.stop()
+            self.reports.maintainer.rows.close()
         self.queries.close()
         self.journal.close()
         self.shared_context.close()
@@ -77,12 +81,13 @@ def build_services(
     version = DataVersion()
     applier.on_applied(lambda _step: version.bump())  # whatever the applier writes invalidates cached results
     cache = ResultCache(version, enabled=store.kind in OWNED_STORES)
-    graph = GraphService(catalog, store, cache)
-    rows = ReportRows(None if in_memory else settings.data_dir / REPORTS_FILE, uuid.uuid4().hex)
-    maintainer = ReportMaintainer(store, journal, rows)
+    maintainer = ReportMaintainer(store, ReportRows(None if in_memory else settings.data_dir / REPORTS_FILE))
     for query in catalog.under(REPORTS_FOLDER):
         maintainer.add(query)
-    applier.on_applied(maintainer.on_applied)
+    index = GraphIndex(store, None if in_memory else settings.data_dir / GRAPH_FILE)
+    views = Projector(store, journal, [*maintainer.reports.values(), index])
+    applier.on_applied(views.on_applied)
+    graph = GraphService(catalog, store, index, wait_ready=lambda timeout: views.wait_for(0, timeout))
     return Services(
         settings=settings,
         store=store,
@@ -111,5 +116,6 @@ def build_services(
             max_memory_bytes=settings.sparql_max_memory_bytes,
             snapshots=None if in_memory else settings.data_dir / "snapshots",
         ),
+        views=views,
         server_log=server_log,
     )

@@ -75,3 +75,9 @@ class InvalidQuery(ServiceError):
     """A user's SPARQL query is malformed or not allowed (updates, federation)."""
 
     code = "invalid_query"
+
+
+class ViewNotReady(ServiceError):
+    """A view kept from the journal (the graph index) is still being built: the request can be repeated soon."""
+
+    code = "view_not_ready"

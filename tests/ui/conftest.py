@@ -15,6 +15,7 @@ from segb_server.backend.store.oxigraph import OxigraphStore
 from segb_server.examples.emotion_mirror import run
 from tests.conftest import ARTIFACTS, UiStack, start_ui_stack
 from tests.support.net import free_port
+from tests.support.settle import settle
 
 AXE = Path(__file__).resolve().parents[1] / "support" / "axe" / "axe.min.js"
 REPORTS = ["participants", "conversations", "emotion-timeline", "extreme-emotions", "ml-usage", "robot-states"]
@@ -36,6 +37,7 @@ def demo_stack() -> Iterator[UiStack]:
     try:
         assert "demo dataset published" in publish_demo(stack.api_url)
         run_example_robot(stack.api_url)
+        settle(stack.api_url)  # reports and graph are read from views kept current from the journal
         yield stack
     finally:
         stacks.close()

@@ -11,6 +11,7 @@ import pytest
 from bench.workloads import ntriples_of, replicate
 from tests.conftest import ARTIFACTS, UiStack
 from tests.support.scenarios import lobby
+from tests.support.settle import settle
 
 pytestmark = pytest.mark.browser
 
@@ -149,6 +150,7 @@ def test_graph_page_stays_interactive_with_thousands_of_nodes(ui_stack: UiStack,
             f"{ui_stack.api_url}/ttl", content=copy, headers={"Content-Type": "application/n-triples"}, timeout=120
         )
         assert response.status_code == 201
+    settle(ui_stack.api_url)  # the graph is drawn from its index, current once the posts are applied
     figures = open_graph(page, f"{ui_stack.ui_url}/kg-graph?limit=20000", timeout_ms=120_000)
     assert figures["nodes"] >= (1000 if interactions < 100 else 5000)
     # Interactive: a search focuses a node deep in the drawing and its panel opens.

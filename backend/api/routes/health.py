@@ -44,7 +44,8 @@ async def live() -> ProbeResponse:
         'is full (`"journal": false`). The store kind is `virtuoso`, `oxigraph`, `memory` or `sparql`, so on '
         'the Virtuoso stack the body is `{"ready": true, "virtuoso": true}`. While the store has journal entries '
         'to apply, `"apply_lag": {"entries", "seconds"}` says how far behind it is, and `"reports_lag": {"entries"}` '
-        "how far the reports' rows are behind the store (both absent once caught up)."
+        "how far the views (the reports' rows and the graph index) are behind the store (both absent once caught "
+        "up)."
     ),
     response_class=ProbeResponse,
     responses={
@@ -69,8 +70,7 @@ async def ready(services: ServicesDep) -> ProbeResponse:
         entries, seconds = services.applier.lag()
         if entries:  # only then: the tutorial's `{"ready": true, "virtuoso": true}` stays exact when caught up
             body["apply_lag"] = {"entries": entries, "seconds": round(seconds, 3)}
-        maintainer = services.reports.maintainer
-        behind = maintainer.lag(services.applier.applied) if maintainer is not None else 0
+        behind = services.views.lag(services.applier.applied)  # the reports' rows and the graph index
         if behind:
             body["reports_lag"] = {"entries": behind}
         return body, status

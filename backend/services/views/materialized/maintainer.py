@@ -1,4 +1,4 @@
-"""Keeping materialised reports current from what each applied journal step added.
+"""Reports kept as rows, current with each applied journal step (each report is one `Projection`).
 
 For every triple pattern of a report that a new triple matches, the report's own patterns that are sure to
 hold with it lead back to the row keys it can change (one small bound query); the report's query is then run
@@ -12,18 +12,12 @@ from __future__ import annotations
 
 import hashlib
 import logging
-import queue
 import re
-import threading
-import time
 from collections import deque
 from collections.abc import Iterable
-from dataclasses import dataclass
 
 from pyoxigraph import Quad, RdfFormat, Triple, parse
 
-from segb_server.backend.services.ingest.applier import Applied
-from segb_server.backend.services.ingest.journal import Journal
 from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, CatalogQuery
 from segb_server.backend.services.views.materialized.plan import (
     FacetFilter,
@@ -33,7 +27,7 @@ from segb_server.backend.services.views.materialized.plan import (
     plan_report,
 )
 from segb_server.backend.services.views.materialized.rows import Layout, Page, ReportRows, Row
-from segb_server.backend.store.base import Store, StoreError, Term, select
+from segb_server.backend.store.base import Store, Term, select
 from segb_server.backend.store.sparql_text import code_only
 from segb_server.backend.store.terms import bind_rows, bind_values, term_text
 
@@ -44,197 +38,95 @@ VALUES_PER_QUERY = 300
 CHANGES_KEPT = 20_000
 
 
-@dataclass
-class Materialized:
-    """One report kept as rows: its layout, the variable its rows are replaced by, and its queries."""
-
-    layout: Layout
-    unit: str  # variable name (no ?) whose values the rows are replaced by
-    text: str  # the query whose answer the rows are (for an aggregate: before grouping)
-    fingerprint: str
-    ready: bool = False
-
-
 class ReportMaintainer:
-    def __init__(self, store: Store, journal: Journal, rows: ReportRows) -> None:
+    """The reports kept as rows: one `ReportProjection` each, run by the `Projector`."""
+
+    def __init__(self, store: Store, rows: ReportRows) -> None:
         self.store = store
-        self.journal = journal
         self.rows = rows
-        self.reports: dict[str, Materialized] = {}
+        self.reports: dict[str, ReportProjection] = {}
         self.unsupported: dict[str, str] = {}
-        self._queue: queue.Queue[Applied | _Marker | None] = queue.Queue()
-        self._thread: threading.Thread | None = None
-        self._stopping = (
-            threading.Event()
-        )  # ends the retry waits too: a store that never returns must not hold shutdown
-        self.last_error: str | None = None
-        self.through = 0  # the journal entry the rows are current through
 
     def add(self, query: CatalogQuery) -> None:
         """Keep `query` current (or note why it cannot be, once, at start-up)."""
         try:
-            plan = plan_report(query)
-            materialized = _materialized(query, plan)
+            projection = _projection(query, plan_report(query), self.store, self.rows)
         except Unsupported as reason:
             self.unsupported[query.name] = str(reason)
             logger.warning("report %s is evaluated in full on every request: %s", query.name, reason)
             return
-        self.reports[query.name] = materialized
-
-    def start(self) -> None:
-        self._thread = threading.Thread(target=self._run, name="segb-reports", daemon=True)
-        self._thread.start()
-
-    def stop(self) -> None:
-        self._stopping.set()
-        self._queue.put(None)
-        if self._thread is not None:
-            self._thread.join(timeout=30)
-
-    def on_applied(self, step: Applied) -> None:
-        self._queue.put(step)
+        self.reports[query.name] = projection
 
     def page(self, name: str, bound: dict[str, Term | None], limit: int, offset: int, after: str | None) -> Page | None:
-        """A page served from the rows, or None while the report is not (or cannot be) materialised."""
-        materialized = self.reports.get(name)
-        if materialized is None or not materialized.ready:
+        """A page served from the rows, or None while the report is not (or cannot be) kept as rows."""
+        projection = self.reports.get(name)
+        if projection is None or not projection.ready:
             return None
-        return self.rows.page(materialized.layout, bound, limit, offset, after)
+        return self.rows.page(projection.layout, bound, limit, offset, after)
 
-    def wait_until_current(self, timeout: float) -> bool:
-        """Wait until every step applied so far is in the rows (for tests and the benchmark)."""
-        done = threading.Event()
-        self._queue.put(_Marker(done))
-        return done.wait(timeout)
 
-    # --- the thread ----------------------------------------------------------------------------------
+class ReportProjection:
+    """One report kept as rows: its layout, the variable its rows are replaced by, and its queries."""
 
-    def _run(self) -> None:
-        while True:
-            try:
-                self._build_all()
-                break
-            except StoreError as error:
-                self.last_error = str(error)
-                logger.warning("building reports failed (%s); retrying", error)
-                if self._stopping.wait(2):
-                    return
-        while True:
-            steps: list[Applied | _Marker | None] = [self._queue.get()]
-            while not self._queue.empty() and len(steps) < 200:
-                steps.append(self._queue.get())
-            if any(step is None for step in steps):
-                return
-            markers = [step for step in steps if isinstance(step, _Marker)]
-            applied = [step for step in steps if isinstance(step, Applied)]
-            while True:
-                try:
-                    if applied:
-                        self._process(applied)
-                    self.last_error = None
-                    break
-                except StoreError as error:
-                    self.last_error = str(error)
-                    logger.warning("keeping reports current failed (%s); retrying", error)
-                    if self._stopping.wait(1):
-                        return
-                except Exception:
-                    logger.exception("keeping reports current failed; building them again")
-                    for materialized in self.reports.values():
-                        self._build(materialized)
-                    break
-            if applied:
-                self.through = max(self.through, applied[-1].entries[-1].sequence)
-            for marker in markers:
-                marker.done.set()
+    def __init__(self, layout: Layout, unit: str, text: str, fingerprint: str, store: Store, rows: ReportRows):
+        self.layout = layout
+        self.unit = unit  # variable name (no ?) whose values the rows are replaced by
+        self.text = text  # the query whose answer the rows are (for an aggregate: before grouping)
+        self.fingerprint = fingerprint
+        self.store = store
+        self.rows = rows
+        self.name = layout.plan.name
+        self.ready = False
 
-    def _build_all(self) -> None:
-        started_through = self.store.applied_through() or 0
-        for name, materialized in self.reports.items():
-            fingerprint, through = self.rows.state(name)
-            if fingerprint == materialized.fingerprint:
-                self._catch_up(materialized, through)
-            else:
-                self._build(materialized)
-            materialized.ready = True
-        self.through = max(self.through, started_through)
-        self.rows.prune_changes(CHANGES_KEPT)
+    def stored_through(self) -> int | None:
+        fingerprint, through = self.rows.state(self.name)
+        if fingerprint != self.fingerprint:
+            return None
+        self.rows.create(self.layout, fresh=False)
+        return through
 
-    def lag(self, applied: int) -> int:
-        """Journal entries the store has and the rows do not have yet. While the rows are first built, reports
-        are answered by evaluating their queries, which see everything: no lag then."""
-        if not any(materialized.ready for materialized in self.reports.values()):
-            return 0
-        return max(0, applied - self.through)
+    def build(self, through: int) -> None:
+        self.rows.create(self.layout, fresh=True)
+        rows = self._evaluate(None)
+        self.rows.replace(self.layout, rows, rows, through)
+        self.rows.set_state(self.name, self.fingerprint, through)
+        logger.info("report %s built: %d keys", self.name, len(rows))
 
-    def _build(self, materialized: Materialized) -> None:
-        started = time.perf_counter()
-        through = self.store.applied_through() or 0
-        self.rows.create(materialized.layout, fresh=True)
-        rows = self._evaluate(materialized, None)
-        self.rows.replace(materialized.layout, rows, rows, through)
-        self.rows.set_state(materialized.layout.plan.name, materialized.fingerprint, through)
-        logger.info(
-            "report %s built: %d keys in %.1f s",
-            materialized.layout.plan.name,
-            len(rows),
-            time.perf_counter() - started,
-        )
+    def clear(self, through: int) -> None:
+        self.rows.clear(self.layout)
+        self.rows.set_state(self.name, self.fingerprint, through)
 
-    def _catch_up(self, materialized: Materialized, through: int) -> None:
-        """Apply to the rows what the store received while this server was not keeping them current."""
-        self.rows.create(materialized.layout, fresh=False)
-        current = self.store.applied_through() or 0
-        if current == through:
-            return
-        entries = self.journal.entries_after(through, current - through)
-        if any(entry.action == "delete_all" for entry in entries):
-            self._build(materialized)
-            return
-        quads = [quad for entry in entries if entry.content for quad in parse(entry.content, RdfFormat.N_TRIPLES)]
-        self._update(materialized, quads, current)
-
-    def _process(self, steps: list[Applied]) -> None:
-        through = steps[-1].entries[-1].sequence
-        cleared = max((index for index, step in enumerate(steps) if step.cleared), default=-1)
-        if cleared >= 0:
-            for materialized in self.reports.values():
-                self.rows.clear(materialized.layout)
-            steps = steps[cleared + 1 :]
-        quads = [quad for step in steps for quad in step.quads]
-        for materialized in self.reports.values():
-            self._update(materialized, quads, through)
-
-    def _update(self, materialized: Materialized, quads: list[Quad], through: int) -> None:
-        plan = materialized.layout.plan
+    def update(self, quads: list[Quad], through: int) -> None:
+        plan = self.layout.plan
         if quads:
-            units = units_touched(plan, materialized.unit, quads, self.store)
+            units = units_touched(plan, self.unit, quads, self.store)
             if units:
-                rows = self._evaluate(materialized, sorted(units))
-                self.rows.replace(materialized.layout, sorted(units), rows, through)
+                rows = self._evaluate(sorted(units))
+                self.rows.replace(self.layout, sorted(units), rows, through)
             for facet in plan.facet_filters:
                 anchors = units_touched(_facet_plan(plan, facet), facet.anchor[1:], quads, self.store)
                 if anchors:
-                    self._update_facet(materialized, facet, sorted(anchors))
-        self.rows.set_state(plan.name, materialized.fingerprint, through)
+                    self._update_facet(facet, sorted(anchors))
+            self.rows.prune_changes(CHANGES_KEPT)
+        self.rows.set_state(self.name, self.fingerprint, through)
 
     # --- queries -------------------------------------------------------------------------------------
 
-    def _evaluate(self, materialized: Materialized, units: list[str] | None) -> dict[str, list[Row]]:
+    def _evaluate(self, units: list[str] | None) -> dict[str, list[Row]]:
         """The report's rows grouped by unit: for `units` only, or (None) for all."""
-        unbound = {PARAMETER_VARIABLE_PREFIX + p: None for p in materialized.layout.parameters}
-        text = bind_values(materialized.text, unbound)
+        unbound = {PARAMETER_VARIABLE_PREFIX + p: None for p in self.layout.parameters}
+        text = bind_values(self.text, unbound)
         chunks = [None] if units is None else [units[i : i + VALUES_PER_QUERY] for i in range(0, len(units), 300)]
         grouped: dict[str, list[Row]] = {unit: [] for unit in units or []}
         for chunk in chunks:
-            bound = text if chunk is None else bind_rows(text, [materialized.unit], [[_term(unit)] for unit in chunk])
+            bound = text if chunk is None else bind_rows(text, [self.unit], [[_term(unit)] for unit in chunk])
             for row in select(self.store, bound).rows:
-                unit = row.get(materialized.unit)
+                unit = row.get(self.unit)
                 if unit is not None:
                     grouped.setdefault(term_text(unit), []).append(row)
         return grouped
 
-    def _update_facet(self, materialized: Materialized, facet: FacetFilter, anchors: list[str]) -> None:
+    def _update_facet(self, facet: FacetFilter, anchors: list[str]) -> None:
         variable = PARAMETER_VARIABLE_PREFIX + facet.parameter
         branches = " UNION ".join("{ " + " ".join(p.sparql() for p in body) + " }" for body in facet.bodies)
         pairs: list[tuple[str, str]] = []
@@ -247,12 +139,7 @@ class ReportMaintainer:
                 anchor, value = row.get(facet.anchor[1:]), row.get(variable)
                 if anchor is not None and value is not None:
                     pairs.append((term_text(anchor), term_text(value)))
-        self.rows.replace_facets(materialized.layout, facet.parameter, anchors, pairs)
-
-
-@dataclass
-class _Marker:
-    done: threading.Event
+        self.rows.replace_facets(self.layout, facet.parameter, anchors, pairs)
 
 
 def units_touched(plan: ReportPlan, unit: str, quads: list[Quad], store: Store) -> set[str]:
@@ -356,7 +243,7 @@ def _term(text: str) -> Term:
     return term
 
 
-def _materialized(query: CatalogQuery, plan: ReportPlan) -> Materialized:
+def _projection(query: CatalogQuery, plan: ReportPlan, store: Store, rows: ReportRows) -> ReportProjection:
     if plan.is_aggregate:
         counted = [a for a in plan.aggregates if a.function == "count" and a.distinct]
         if len(counted) != 1:
@@ -373,7 +260,7 @@ def _materialized(query: CatalogQuery, plan: ReportPlan) -> Materialized:
         _check_reachable(plan, plan.key[0])
     layout = Layout(f"report_{re.sub(r'[^a-z0-9]', '_', query.name.lower())}", plan, query.parameters)
     fingerprint = hashlib.sha256(f"{PLAN_VERSION}\n{query.text}".encode()).hexdigest()
-    return Materialized(layout, unit, text, fingerprint)
+    return ReportProjection(layout, unit, text, fingerprint, store, rows)
 
 
 def _check_reachable(plan: ReportPlan, target: str) -> None:

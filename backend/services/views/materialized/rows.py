@@ -10,9 +10,7 @@ from __future__ import annotations
 
 import base64
 import json
-import sqlite3
 import struct
-import threading
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -22,6 +20,7 @@ from pyoxigraph import NamedNode
 
 from segb_server.backend.services.errors import InvalidParameter
 from segb_server.backend.services.sparql.catalog import Parameter
+from segb_server.backend.services.views.database import ViewDatabase
 from segb_server.backend.services.views.materialized.encoding import filter_value, sort_key
 from segb_server.backend.services.views.materialized.plan import ReportPlan
 from segb_server.backend.services.views.term_values import JsonValue, iso_time, json_value
@@ -98,47 +97,30 @@ class Layout:
 
 
 class ReportRows:
-    """Every materialised report's rows in one SQLite database (a file, or shared memory)."""
+    """Every materialised report's rows in one SQLite database (a file in the data directory, or temporary)."""
 
-    def __init__(self, path: Path | None, name: str) -> None:
-        # Readers and the one writer use their own connections; WAL lets them read while it writes.
-        self._uri = f"file:{path}" if path is not None else f"file:segb-reports-{name}?mode=memory&cache=shared"
-        self._local = threading.local()
-        self._writer_lock = threading.Lock()
-        self._keep_alive = self._connect()  # holds a shared in-memory database open
-        if path is not None:
-            self._keep_alive.execute("PRAGMA journal_mode=WAL")
-        self._keep_alive.execute(
-            "CREATE TABLE IF NOT EXISTS report_state (report TEXT PRIMARY KEY, fingerprint TEXT, through INTEGER)"
+    def __init__(self, path: Path | None) -> None:
+        self.db = ViewDatabase(
+            path,
+            [
+                "CREATE TABLE IF NOT EXISTS report_state (report TEXT PRIMARY KEY, fingerprint TEXT, through INTEGER)",
+                "CREATE TABLE IF NOT EXISTS report_changes (seq INTEGER PRIMARY KEY AUTOINCREMENT, report TEXT, "
+                "unit TEXT, through INTEGER)",
+            ],
         )
-        self._keep_alive.execute(
-            "CREATE TABLE IF NOT EXISTS report_changes (seq INTEGER PRIMARY KEY AUTOINCREMENT, report TEXT, "
-            "unit TEXT, through INTEGER)"
-        )
-
-    def _connect(self) -> sqlite3.Connection:
-        connection = sqlite3.connect(self._uri, uri=True, check_same_thread=False, isolation_level=None, timeout=30)
-        connection.execute("PRAGMA busy_timeout=30000")
-        return connection
-
-    def _reader(self) -> sqlite3.Connection:
-        connection = getattr(self._local, "connection", None)
-        if connection is None:
-            connection = self._local.connection = self._connect()
-        return connection
 
     # --- state ---------------------------------------------------------------------------------------
 
     def state(self, report: str) -> tuple[str | None, int]:
         row = (
-            self._reader()
+            self.db.reader()
             .execute("SELECT fingerprint, through FROM report_state WHERE report = ?", (report,))
             .fetchone()
         )
         return (row[0], row[1]) if row else (None, 0)
 
     def set_state(self, report: str, fingerprint: str, through: int) -> None:
-        with self._writing() as connection:
+        with self.db.writing() as connection:
             connection.execute(
                 "INSERT INTO report_state VALUES (?, ?, ?) ON CONFLICT (report) DO UPDATE SET "
                 "fingerprint = excluded.fingerprint, through = excluded.through",
@@ -148,7 +130,7 @@ class ReportRows:
     # --- writing -------------------------------------------------------------------------------------
 
     def create(self, layout: Layout, *, fresh: bool) -> None:
-        with self._writing() as connection:
+        with self.db.writing() as connection:
             if fresh:
                 connection.execute(f"DROP TABLE IF EXISTS {layout.table}")
                 connection.execute(f"DROP TABLE IF EXISTS {layout.table}_facets")
@@ -159,7 +141,7 @@ class ReportRows:
         """The rows of `units` are now `rows[unit]` (none for a unit that has no rows any more)."""
         units = list(units)
         placeholders = ", ".join(["?"] * layout.column_count)
-        with self._writing() as connection:
+        with self.db.writing() as connection:
             for start in range(0, len(units), 500):
                 chunk = units[start : start + 500]
                 connection.execute(f"DELETE FROM {layout.table} WHERE unit IN ({', '.join(['?'] * len(chunk))})", chunk)
@@ -175,7 +157,7 @@ class ReportRows:
     def replace_facets(
         self, layout: Layout, parameter: str, anchors: Sequence[str], pairs: list[tuple[str, str]]
     ) -> None:
-        with self._writing() as connection:
+        with self.db.writing() as connection:
             for start in range(0, len(anchors), 500):
                 chunk = list(anchors[start : start + 500])
                 marks = ", ".join(["?"] * len(chunk))
@@ -188,12 +170,12 @@ class ReportRows:
             )
 
     def clear(self, layout: Layout) -> None:
-        with self._writing() as connection:
+        with self.db.writing() as connection:
             connection.execute(f"DELETE FROM {layout.table}")
             connection.execute(f"DELETE FROM {layout.table}_facets")
 
     def prune_changes(self, keep: int) -> None:
-        with self._writing() as connection:
+        with self.db.writing() as connection:
             connection.execute(
                 "DELETE FROM report_changes WHERE seq <= (SELECT MAX(seq) FROM report_changes) - ?", (keep,)
             )
@@ -210,7 +192,7 @@ class ReportRows:
             arguments += _cursor(after)
         clause = f"WHERE {' AND '.join(where)}" if where else ""
         rows = (
-            self._reader()
+            self.db.reader()
             .execute(
                 f"SELECT ord, unit, n, row FROM {layout.table} {clause} ORDER BY ord, unit, n LIMIT ? OFFSET ?",
                 [*arguments, limit + 1, 0 if after is not None else offset],
@@ -224,22 +206,22 @@ class ReportRows:
     def changes_since(self, seq: int, limit: int = 1000) -> list[tuple[int, str, str]]:
         """(seq, report, unit) of the changes after `seq`, oldest first."""
         return (
-            self._reader()
+            self.db.reader()
             .execute("SELECT seq, report, unit FROM report_changes WHERE seq > ? ORDER BY seq LIMIT ?", (seq, limit))
             .fetchall()
         )
 
     def oldest_change(self) -> int:
-        return self._reader().execute("SELECT COALESCE(MIN(seq), 0) FROM report_changes").fetchone()[0]
+        return self.db.reader().execute("SELECT COALESCE(MIN(seq), 0) FROM report_changes").fetchone()[0]
 
     def last_change(self) -> int:
-        return self._reader().execute("SELECT COALESCE(MAX(seq), 0) FROM report_changes").fetchone()[0]
+        return self.db.reader().execute("SELECT COALESCE(MAX(seq), 0) FROM report_changes").fetchone()[0]
 
     def unit_rows(self, layout: Layout, units: Sequence[str]) -> list[dict[str, JsonValue]]:
         if not units:
             return []
         found = (
-            self._reader()
+            self.db.reader()
             .execute(
                 f"SELECT row FROM {layout.table} WHERE unit IN ({', '.join(['?'] * len(units))}) ORDER BY ord, unit, n",
                 list(units),
@@ -276,7 +258,7 @@ class ReportRows:
         having = "HAVING ord > ?" if after is not None else ""
         clause = f"WHERE {' AND '.join(where)}" if where else ""
         rows = (
-            self._reader()
+            self.db.reader()
             .execute(
                 f"SELECT ord, MIN(row), {aggregates} FROM {layout.table} {clause} GROUP BY ord {having} "
                 "ORDER BY ord LIMIT ? OFFSET ?",
@@ -295,32 +277,7 @@ class ReportRows:
         return Page(out, has_more, kept[-1][0] if has_more and kept else None)
 
     def close(self) -> None:
-        self._keep_alive.close()
-
-    def _writing(self) -> _Writing:
-        return _Writing(self)
-
-
-class _Writing:
-    """One write transaction on the writer's connection."""
-
-    def __init__(self, rows: ReportRows) -> None:
-        self._rows = rows
-
-    def __enter__(self) -> sqlite3.Connection:
-        self._rows._writer_lock.acquire()
-        connection = getattr(self._rows, "_writer", None)
-        if connection is None:
-            connection = self._rows._writer = self._rows._connect()  # type: ignore[attr-defined]
-        connection.execute("BEGIN IMMEDIATE")
-        return connection
-
-    def __exit__(self, kind: object, error: object, trace: object) -> None:
-        connection = self._rows._writer  # type: ignore[attr-defined]
-        try:
-            connection.execute("ROLLBACK" if kind is not None else "COMMIT")
-        finally:
-            self._rows._writer_lock.release()
+        self.db.close()
 
 
 def _stored(term: Term | None) -> JsonValue:

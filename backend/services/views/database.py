@@ -1,0 +1,80 @@
+"""One SQLite database a view keeps its rows in: one writer (the projector's thread), many readers.
+
+WAL lets requests read while the writer writes, each reader thread on its own connection. A server without a
+data directory (STORE=memory) gets a file in a temporary directory, removed at close: shared-cache memory
+databases lock whole tables against readers while a write is under way, which a long build would turn into
+failed requests.
+"""
+
+from __future__ import annotations
+
+import shutil
+import sqlite3
+import tempfile
+import threading
+from pathlib import Path
+from types import TracebackType
+
+
+class ViewDatabase:
+    def __init__(self, path: Path | None, schema: list[str]) -> None:
+        self._temporary = Path(tempfile.mkdtemp(prefix="segb-view-")) if path is None else None
+        self.path = path if path is not None else self._temporary / "view.sqlite3"  # type: ignore[operator]
+        self._local = threading.local()
+        self._writer_lock = threading.Lock()
+        self._writer: sqlite3.Connection | None = None
+        self._connections: list[sqlite3.Connection] = []
+        self._connections_lock = threading.Lock()
+        setup = self._connect()
+        setup.execute("PRAGMA journal_mode=WAL")
+        for statement in schema:
+            setup.execute(statement)
+
+    def _connect(self) -> sqlite3.Connection:
+        connection = sqlite3.connect(self.path, check_same_thread=False, isolation_level=None, timeout=30)
+        connection.execute("PRAGMA busy_timeout=30000")
+        connection.execute("PRAGMA synchronous=NORMAL")  # a view is rebuilt from the store if ever lost
+        with self._connections_lock:
+            self._connections.append(connection)
+        return connection
+
+    def reader(self) -> sqlite3.Connection:
+        """This thread's connection for reading."""
+        connection = getattr(self._local, "connection", None)
+        if connection is None:
+            connection = self._local.connection = self._connect()
+        return connection
+
+    def writing(self) -> _Writing:
+        """`with database.writing() as connection:` one write transaction, one writer at a time."""
+        return _Writing(self)
+
+    def close(self) -> None:
+        with self._connections_lock:
+            for connection in self._connections:
+                connection.close()
+            self._connections.clear()
+        if self._temporary is not None:
+            shutil.rmtree(self._temporary, ignore_errors=True)
+
+
+class _Writing:
+    def __init__(self, database: ViewDatabase) -> None:
+        self._database = database
+
+    def __enter__(self) -> sqlite3.Connection:
+        self._database._writer_lock.acquire()
+        if self._database._writer is None:
+            self._database._writer = self._database._connect()
+        self._database._writer.execute("BEGIN IMMEDIATE")
+        return self._database._writer
+
+    def __exit__(
+        self, kind: type[BaseException] | None, error: BaseException | None, trace: TracebackType | None
+    ) -> None:
+        connection = self._database._writer
+        try:
+            if connection is not None:
+                connection.execute("ROLLBACK" if kind is not None else "COMMIT")
+        finally:
+            self._database._writer_lock.release()

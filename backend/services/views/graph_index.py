@@ -1,0 +1,501 @@
+"""The drawable graph kept as indexed rows, current with each applied journal step (a `Projection`).
+
+What is drawn: every link between two resources (`rdf:type` gives node types instead) and the literals that
+name and place nodes (`DRAWN_LITERALS`); other literals stay in node details (`GET /resource`). The facts are
+stored as they arrive (types, literals, links); each node's derived row (kind, time, label) is computed again
+whenever a fact about it, or about an activity it borrows its time from, arrives. `GET /graph` is then a few
+indexed SQL queries whatever the size of the log: the first view reads the first nodes of an index in drawing
+order, filters become conditions, a neighbourhood a recursive query over the links.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from collections import defaultdict
+from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+from pyoxigraph import Literal, NamedNode, Quad
+
+from segb_server.backend.services.views.database import ViewDatabase
+from segb_server.backend.services.views.term_values import iso_time
+from segb_server.backend.store.base import Store
+from segb_server.backend.vocabulary import KINDS, PREFIXES, Kind, compact, kind_of
+
+logger = logging.getLogger("segb.graph")
+
+INDEX_VERSION = "1"  # bump when the stored rows change meaning: the index is then built again
+RDF_TYPE = PREFIXES["rdf"] + "type"
+# Display name predicates, best first.
+LABELS = [PREFIXES["foaf"] + "firstName", PREFIXES["schema"] + "name", PREFIXES["rdfs"] + "label"]
+TEXT = PREFIXES["schema"] + "text"
+DESCRIPTION = PREFIXES["schema"] + "description"
+INTENSITY = PREFIXES["onyx"] + "hasEmotionIntensity"
+CATEGORY = PREFIXES["onyx"] + "hasEmotionCategory"
+# Own time of a node, best first. Messages and emotions borrow the time of the activity behind them.
+TIMES = [PREFIXES["prov"] + name for name in ("startedAtTime", "endedAtTime", "generatedAtTime")]
+GENERATED_AT = PREFIXES["prov"] + "generatedAtTime"
+WAS_GENERATED_BY = PREFIXES["prov"] + "wasGeneratedBy"
+PRODUCED = PREFIXES["segb"] + "producedEntityResult"
+HAS_EMOTION = PREFIXES["onyx"] + "hasEmotion"
+PERFORMED_BY = PREFIXES["segb"] + "wasPerformedBy"
+ATTRIBUTED_TO = PREFIXES["prov"] + "wasAttributedTo"
+PROV = PREFIXES["prov"]
+DRAWN_LITERALS = frozenset([*LABELS, TEXT, DESCRIPTION, *TIMES, INTENSITY])
+MAX_LABEL = 60
+UNTIMED = "~"  # sorts after every instant
+CHUNK = 400  # IRIs per IN (…) list
+
+SCHEMA = [
+    "CREATE TABLE IF NOT EXISTS graph_state (id INTEGER PRIMARY KEY CHECK (id = 1), version TEXT, through INTEGER)",
+    "CREATE TABLE IF NOT EXISTS graph_types (iri TEXT, type TEXT, PRIMARY KEY (iri, type)) WITHOUT ROWID",
+    "CREATE TABLE IF NOT EXISTS graph_literals (iri TEXT, predicate TEXT, value TEXT, PRIMARY KEY (iri, predicate))"
+    " WITHOUT ROWID",
+    "CREATE TABLE IF NOT EXISTS graph_links (source TEXT, predicate TEXT, target TEXT, "
+    "PRIMARY KEY (source, predicate, target)) WITHOUT ROWID",
+    "CREATE INDEX IF NOT EXISTS graph_links_by_target ON graph_links (target, predicate, source)",
+    # kind, time, label: derived from the facts; instant: the time as a fixed-width UTC text that sorts as time
+    "CREATE TABLE IF NOT EXISTS graph_nodes (iri TEXT PRIMARY KEY, kind TEXT NOT NULL, rank INTEGER NOT NULL, "
+    "time TEXT, instant TEXT NOT NULL, label TEXT NOT NULL, search TEXT NOT NULL) WITHOUT ROWID",
+    "CREATE INDEX IF NOT EXISTS graph_nodes_order ON graph_nodes (rank, instant, iri)",
+    "CREATE INDEX IF NOT EXISTS graph_nodes_instant ON graph_nodes (instant)",
+]
+RANK = {kind: index for index, kind in enumerate(KINDS)}
+
+
+@dataclass(frozen=True)
+class GraphRequest:
+    limit: int = 1500
+    robot: str | None = None
+    since: str | None = None
+    until: str | None = None
+    types: tuple[str, ...] = ()
+    focus: str | None = None
+    depth: int = 1
+    q: str | None = None
+
+
+class GraphIndex:
+    name = "graph"
+
+    def __init__(self, store: Store, path: Path | None) -> None:
+        self.store = store
+        self.db = ViewDatabase(path, SCHEMA)
+        self.ready = False
+
+    # --- Projection ----------------------------------------------------------------------------------
+
+    def stored_through(self) -> int | None:
+        row = self.db.reader().execute("SELECT version, through FROM graph_state").fetchone()
+        return row[1] if row is not None and row[0] == INDEX_VERSION else None
+
+    def build(self, through: int) -> None:
+        with self.db.writing() as connection:
+            for table in ("graph_types", "graph_literals", "graph_links", "graph_nodes"):
+                connection.execute(f"DELETE FROM {table}")
+            nodes = 0
+            for batch in self.store.batches(20_000):
+                nodes += len(_store_facts(connection, batch))
+            iris = [row[0] for row in connection.execute("SELECT iri FROM graph_nodes")]
+            _derive(connection, iris)
+            _set_through(connection, through)
+        logger.info("graph index built: %d nodes", len(iris))
+
+    def update(self, quads: list[Quad], through: int) -> None:
+        with self.db.writing() as connection:
+            touched = _store_facts(connection, quads)
+            if touched:
+                _derive(connection, sorted(touched | _borrowers(connection, touched)))
+            _set_through(connection, through)
+
+    def clear(self, through: int) -> None:
+        with self.db.writing() as connection:
+            for table in ("graph_types", "graph_literals", "graph_links", "graph_nodes"):
+                connection.execute(f"DELETE FROM {table}")
+            _set_through(connection, through)
+
+    def close(self) -> None:
+        self.db.close()
+
+    # --- reading -------------------------------------------------------------------------------------
+
+    def view(self, request: GraphRequest) -> dict[str, object]:
+        """The nodes and edges to draw, most relevant first, cut at `request.limit`."""
+        connection = self.db.reader()
+        query = _CandidateQuery(request)
+        if (
+            request.focus
+            and not connection.execute("SELECT 1 FROM graph_nodes WHERE iri = ?", (request.focus,)).fetchone()
+        ):
+            return {"nodes": [], "edges": [], "truncated": False, "total_nodes": 0, "matches": []}
+        kept = [row[0] for row in connection.execute(*query.ordered(request.limit + 1))]
+        truncated = len(kept) > request.limit
+        kept = kept[: request.limit]
+        total = len(kept) if not truncated else connection.execute(*query.count()).fetchone()[0]
+        nodes = _nodes(connection, kept)
+        needle = request.q.casefold() if request.q else None
+        return {
+            "nodes": [nodes[iri] for iri in kept],
+            "edges": _edges(connection, kept),
+            "truncated": truncated,
+            "total_nodes": total,
+            "matches": [iri for iri in kept if needle and _matches(nodes[iri], needle)],
+        }
+
+
+class _CandidateQuery:
+    """One SQL query choosing the nodes a request draws: each filter adds a common table expression of the
+    IRIs it allows and a condition on the node; a focus adds the distances from it (recursive)."""
+
+    def __init__(self, request: GraphRequest) -> None:
+        self.ctes: list[str] = []
+        self.arguments: list[object] = []
+        self.conditions: list[str] = []
+        self.condition_arguments: list[object] = []
+        self.distance = False
+        if request.robot:
+            self._robot(request.robot)
+        if request.since or request.until:
+            self._window(request.since, request.until)
+        if request.types:
+            self._types(request.types)
+        if request.q:
+            self._search(request.q.casefold())
+        if request.focus:
+            self._focus(request.focus, request.depth)
+
+    def _cte(self, text: str, *arguments: object) -> None:
+        self.ctes.append(text)
+        self.arguments.extend(arguments)
+
+    def _robot(self, robot: str) -> None:
+        """The robot, what it did and was attributed (activities, states), what those touched, and the
+        emotions and humans one step further (through annotations and shared events)."""
+        self._cte(
+            "robot_seeds(iri) AS (SELECT ? UNION SELECT source FROM graph_links WHERE target = ? "
+            "AND predicate IN (?, ?))",
+            robot, robot, PERFORMED_BY, ATTRIBUTED_TO,
+        )  # fmt: skip
+        self._cte(
+            "robot_around(iri) AS (SELECT iri FROM robot_seeds "
+            "UNION SELECT l.target FROM robot_seeds s JOIN graph_links l ON l.source = s.iri "
+            "UNION SELECT l.source FROM robot_seeds s JOIN graph_links l ON l.target = s.iri)"
+        )
+        self._cte(
+            "robot_set(iri) AS (SELECT iri FROM robot_around UNION SELECT l.target FROM robot_around a "
+            "JOIN graph_nodes n ON n.iri = a.iri AND n.kind IN ('emotion', 'shared-event') "
+            "JOIN graph_links l ON l.source = a.iri)"
+        )
+        self.conditions.append("n.iri IN robot_set")
+
+    def _window(self, since: str | None, until: str | None) -> None:
+        """Timed nodes inside the window, and untimed nodes linked to one of them."""
+        bounds, arguments = ["time IS NOT NULL"], []
+        if since:
+            bounds.append("instant >= ?")
+            arguments.append(instant_of(since))
+        if until:
+            bounds.append("instant <= ?")
+            arguments.append(instant_of(until))
+        self._cte(f"window_timed(iri) AS (SELECT iri FROM graph_nodes WHERE {' AND '.join(bounds)})", *arguments)
+        self._cte(
+            "window_set(iri) AS (SELECT iri FROM window_timed "
+            "UNION SELECT l.target FROM window_timed t JOIN graph_links l ON l.source = t.iri "
+            "JOIN graph_nodes u ON u.iri = l.target AND u.time IS NULL "
+            "UNION SELECT l.source FROM window_timed t JOIN graph_links l ON l.target = t.iri "
+            "JOIN graph_nodes u ON u.iri = l.source AND u.time IS NULL)"
+        )
+        self.conditions.append("n.iri IN window_set")
+
+    def _types(self, wanted: Sequence[str]) -> None:
+        """Kinds (`robot`), class CURIEs (`oro:Robot`) or class IRIs."""
+        kinds = [value for value in wanted if value in KINDS]
+        classes = sorted({_expanded(value) for value in wanted if value not in KINDS})
+        either = []
+        if kinds:
+            either.append(f"n.kind IN ({', '.join('?' * len(kinds))})")
+            self.condition_arguments.extend(kinds)
+        if classes:
+            either.append(f"n.iri IN (SELECT iri FROM graph_types WHERE type IN ({', '.join('?' * len(classes))}))")
+            self.condition_arguments.extend(classes)
+        self.conditions.append(f"({' OR '.join(either)})")
+
+    def _search(self, needle: str) -> None:
+        """Nodes whose label or IRI holds the text (any case), among the nodes allowed so far, and their
+        neighbours."""
+        where = " AND ".join([*self.conditions, "instr(n.search, ?) > 0"])
+        self._cte(f"hits(iri) AS (SELECT n.iri FROM graph_nodes n WHERE {where})", *self.condition_arguments, needle)
+        self._cte(
+            "hit_set(iri) AS (SELECT iri FROM hits "
+            "UNION SELECT l.target FROM hits h JOIN graph_links l ON l.source = h.iri "
+            "UNION SELECT l.source FROM hits h JOIN graph_links l ON l.target = h.iri)"
+        )
+        self.conditions.append("n.iri IN hit_set")
+
+    def _focus(self, focus: str, depth: int) -> None:
+        self._cte(
+            "reach(iri, d) AS (SELECT ?, 0 "
+            "UNION SELECT l.target, r.d + 1 FROM reach r JOIN graph_links l ON l.source = r.iri WHERE r.d < ? "
+            "UNION SELECT l.source, r.d + 1 FROM reach r JOIN graph_links l ON l.target = r.iri WHERE r.d < ?)",
+            focus, depth, depth,
+        )  # fmt: skip
+        self._cte("distance(iri, d) AS (SELECT iri, MIN(d) FROM reach GROUP BY iri)")
+        self.distance = True
+
+    def _select(self, columns: str) -> tuple[str, list[object]]:
+        head = f"WITH RECURSIVE {', '.join(self.ctes)} " if self.ctes else ""
+        join = " JOIN distance d ON d.iri = n.iri" if self.distance else ""
+        where = f" WHERE {' AND '.join(self.conditions)}" if self.conditions else ""
+        return f"{head}SELECT {columns} FROM graph_nodes n{join}{where}", [*self.arguments, *self.condition_arguments]
+
+    def ordered(self, limit: int) -> tuple[str, list[object]]:
+        text, arguments = self._select("n.iri")
+        order = "d.d, n.rank, n.instant, n.iri" if self.distance else "n.rank, n.instant, n.iri"
+        return f"{text} ORDER BY {order} LIMIT ?", [*arguments, limit]
+
+    def count(self) -> tuple[str, list[object]]:
+        return self._select("COUNT(*)")
+
+
+# --- facts and derived rows ----------------------------------------------------------------------------
+
+
+@dataclass
+class _Derived:
+    kind: Kind
+    time: str | None
+    label: str
+
+
+def _store_facts(connection: Any, quads: Iterable[Quad]) -> set[str]:
+    """Store the drawable facts among `quads`; the IRIs of the nodes they are about."""
+    types: list[tuple[str, str]] = []
+    literals: list[tuple[str, str, str]] = []
+    times: list[tuple[str, str, str]] = []
+    links: list[tuple[str, str, str]] = []
+    nodes: set[str] = set()
+    for quad in quads:
+        subject, predicate, value = quad.subject, quad.predicate.value, quad.object
+        if not isinstance(subject, NamedNode):
+            continue
+        if isinstance(value, Literal):
+            if predicate in DRAWN_LITERALS:
+                (times if predicate in TIMES else literals).append((subject.value, predicate, value.value))
+                nodes.add(subject.value)
+        elif isinstance(value, NamedNode):
+            nodes.add(subject.value)
+            if predicate == RDF_TYPE:
+                types.append((subject.value, value.value))
+            else:
+                links.append((subject.value, predicate, value.value))
+                nodes.add(value.value)
+    connection.executemany("INSERT OR IGNORE INTO graph_types VALUES (?, ?)", types)
+    connection.executemany("INSERT OR IGNORE INTO graph_literals VALUES (?, ?, ?)", literals)  # the first name stays
+    connection.executemany("INSERT OR REPLACE INTO graph_literals VALUES (?, ?, ?)", times)
+    connection.executemany("INSERT OR IGNORE INTO graph_links VALUES (?, ?, ?)", links)
+    connection.executemany(
+        "INSERT OR IGNORE INTO graph_nodes VALUES (?, 'other', ?, NULL, ?, '', '')",
+        [(iri, RANK["other"], UNTIMED) for iri in nodes],
+    )
+    return nodes
+
+
+def _borrowers(connection: Any, touched: set[str]) -> set[str]:
+    """Nodes whose time may come from a touched one: what a touched activity produced or generated, and the
+    emotions of what it produced."""
+    first: set[str] = set()
+    for chunk in _chunks(sorted(touched)):
+        marks = ", ".join("?" * len(chunk))
+        first.update(
+            row[0]
+            for row in connection.execute(
+                f"SELECT target FROM graph_links WHERE source IN ({marks}) AND predicate IN (?, ?) "
+                f"UNION SELECT source FROM graph_links WHERE target IN ({marks}) AND predicate = ?",
+                [*chunk, PRODUCED, HAS_EMOTION, *chunk, WAS_GENERATED_BY],
+            )
+        )
+    second: set[str] = set()
+    for chunk in _chunks(sorted(first - touched)):
+        marks = ", ".join("?" * len(chunk))
+        second.update(
+            row[0]
+            for row in connection.execute(
+                f"SELECT target FROM graph_links WHERE source IN ({marks}) AND predicate = ?",
+                [*chunk, HAS_EMOTION],
+            )
+        )
+    return first | second
+
+
+def _derive(connection: Any, iris: Sequence[str]) -> None:
+    """Compute each node's kind, time and label again from its facts."""
+    for chunk in _chunks(iris):
+        marks = ", ".join("?" * len(chunk))
+        types: dict[str, set[str]] = defaultdict(set)
+        for iri, type_ in connection.execute(f"SELECT iri, type FROM graph_types WHERE iri IN ({marks})", chunk):
+            types[iri].add(type_)
+        literals: dict[str, dict[str, str]] = defaultdict(dict)
+        for iri, predicate, value in connection.execute(
+            f"SELECT iri, predicate, value FROM graph_literals WHERE iri IN ({marks})", chunk
+        ):
+            literals[iri][predicate] = value
+        categories = dict(
+            connection.execute(
+                f"SELECT source, MIN(target) FROM graph_links WHERE source IN ({marks}) AND predicate = ? "
+                "GROUP BY source",
+                [*chunk, CATEGORY],
+            )
+        )
+        derived: dict[str, _Derived] = {}
+        for iri in chunk:
+            values = literals.get(iri, {})
+            kind = kind_of(types.get(iri, set()), timestamped=GENERATED_AT in values)
+            own = next((values[p] for p in TIMES if p in values), None)
+            derived[iri] = _Derived(kind, _normal_time(own), display_label(iri, kind, values, categories.get(iri)))
+        borrowing = [iri for iri, d in derived.items() if d.time is None and d.kind in ("message", "emotion")]
+        for iri, time in _borrowed_times(connection, borrowing).items():
+            derived[iri].time = time
+        connection.executemany(
+            "INSERT OR REPLACE INTO graph_nodes VALUES (?, ?, ?, ?, ?, ?, ?)",
+            [
+                (iri, d.kind, RANK[d.kind], d.time, instant_of(d.time) if d.time else UNTIMED, d.label,
+                 f"{d.label.casefold()}\n{iri.casefold()}")
+                for iri, d in derived.items()
+            ],
+        )  # fmt: skip
+
+
+def _borrowed_times(connection: Any, iris: list[str]) -> dict[str, str]:
+    """The time of the activity behind each message or emotion: the activity that generated it, else what
+    produced it (an activity, or an annotation and the activity that produced that)."""
+    found: dict[str, str] = {}
+    routes = [
+        # the message -wasGeneratedBy-> activity
+        "SELECT l.source, t.predicate, t.value FROM graph_links l JOIN graph_literals t ON t.iri = l.target "
+        "WHERE l.predicate = ? AND l.source IN ({marks}) AND t.predicate IN (?, ?, ?)",
+        # activity -producedEntityResult|hasEmotion-> it
+        "SELECT l.target, t.predicate, t.value FROM graph_links l JOIN graph_literals t ON t.iri = l.source "
+        "WHERE l.predicate IN (?, ?) AND l.target IN ({marks}) AND t.predicate IN (?, ?, ?)",
+        # activity -producedEntityResult-> annotation -hasEmotion-> it
+        "SELECT l2.target, t.predicate, t.value FROM graph_links l2 JOIN graph_links l1 ON l1.target = l2.source "
+        "AND l1.predicate IN (?, ?) JOIN graph_literals t ON t.iri = l1.source "
+        "WHERE l2.predicate IN (?, ?) AND l2.target IN ({marks}) AND t.predicate IN (?, ?, ?)",
+    ]
+    for chunk in _chunks(iris):
+        marks = ", ".join("?" * len(chunk))
+        arguments = [
+            [WAS_GENERATED_BY, *chunk, *TIMES],
+            [PRODUCED, HAS_EMOTION, *chunk, *TIMES],
+            [PRODUCED, HAS_EMOTION, PRODUCED, HAS_EMOTION, *chunk, *TIMES],
+        ]
+        for route, route_arguments in zip(routes, arguments, strict=True):
+            best: dict[str, tuple[int, str]] = {}
+            for iri, predicate, value in connection.execute(route.format(marks=marks), route_arguments):
+                if iri in found:
+                    continue
+                time = _normal_time(value)
+                preference = TIMES.index(predicate)
+                if time and (iri not in best or (preference, time) < best[iri]):
+                    best[iri] = (preference, time)
+            found.update({iri: time for iri, (_, time) in best.items()})
+    return found
+
+
+def display_label(iri: str, kind: Kind, literals: dict[str, str], category: str | None) -> str:
+    """A name for a node: its own name, an emotion's category and intensity, its text, or its IRI's end."""
+    for predicate in LABELS:
+        if predicate in literals:
+            return literals[predicate]
+    if kind == "emotion" and INTENSITY in literals:
+        name = local_name(category).removeprefix("big6_") if category else ""
+        return f"{name} {literals[INTENSITY]}".strip()
+    for predicate in (TEXT, DESCRIPTION):
+        if predicate in literals:
+            text = literals[predicate]
+            return text if len(text) <= MAX_LABEL else text[: MAX_LABEL - 1] + "…"
+    return local_name(iri)
+
+
+def _nodes(connection: Any, iris: list[str]) -> dict[str, dict[str, object]]:
+    listed = json.dumps(iris)
+    types: dict[str, list[str]] = defaultdict(list)
+    for iri, type_ in connection.execute(
+        "SELECT iri, type FROM graph_types WHERE iri IN (SELECT value FROM json_each(?))", (listed,)
+    ):
+        types[iri].append(compact(type_))
+    nodes: dict[str, dict[str, object]] = {}
+    for iri, kind, time, label in connection.execute(
+        "SELECT iri, kind, time, label FROM graph_nodes WHERE iri IN (SELECT value FROM json_each(?))", (listed,)
+    ):
+        node: dict[str, object] = {"id": iri, "label": label, "kind": kind, "types": sorted(types.get(iri, []))}
+        if time:
+            node["time"] = time
+        nodes[iri] = node
+    return nodes
+
+
+def _edges(connection: Any, iris: list[str]) -> list[dict[str, str]]:
+    """The links between drawn nodes. The client doubles most links with a PROV copy
+    (segb:wasPerformedBy + prov:wasAssociatedWith, schema:sender + prov:wasAttributedTo, ...); drawing both
+    only doubles every arrow."""
+    listed = json.dumps(iris)
+    links = connection.execute(
+        "SELECT source, predicate, target FROM graph_links WHERE source IN (SELECT value FROM json_each(?)) "
+        "AND target IN (SELECT value FROM json_each(?)) ORDER BY source, predicate, target",
+        (listed, listed),
+    ).fetchall()
+    primary_pairs = {(s, o) for s, p, o in links if not p.startswith(PROV)}
+    return [
+        {"id": f"{s} {p} {o}", "source": s, "target": o, "predicate": p, "label": local_name(p)}
+        for s, p, o in links
+        if not (p.startswith(PROV) and (s, o) in primary_pairs)
+    ]
+
+
+def _matches(node: dict[str, object], needle: str) -> bool:
+    return needle in str(node["label"]).casefold() or needle in str(node["id"]).casefold()
+
+
+def _set_through(connection: Any, through: int) -> None:
+    connection.execute(
+        "INSERT INTO graph_state VALUES (1, ?, ?) ON CONFLICT (id) DO UPDATE SET version = excluded.version, "
+        "through = excluded.through",
+        (INDEX_VERSION, through),
+    )
+
+
+def _expanded(value: str) -> str:
+    """A class CURIE as its IRI (an IRI stays as it is)."""
+    prefix, _, rest = value.partition(":")
+    return PREFIXES[prefix] + rest if prefix in PREFIXES and not rest.startswith("//") else value
+
+
+def _chunks(items: Sequence[str]) -> Iterator[Sequence[str]]:
+    for start in range(0, len(items), CHUNK):
+        yield items[start : start + CHUNK]
+
+
+def _normal_time(value: str | None) -> str | None:
+    if value is None:
+        return None
+    try:
+        return iso_time(value)
+    except ValueError:
+        return None
+
+
+def instant_of(iso: str) -> str:
+    """A time as fixed-width UTC text, which sorts as the instants do: `…05.25Z` is after `…05Z` although
+    `.` sorts before `Z`."""
+    moment = datetime.fromisoformat(iso.replace("Z", "+00:00"))
+    if moment.tzinfo is None:
+        moment = moment.replace(tzinfo=UTC)
+    return moment.astimezone(UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+
+
+def local_name(iri: str) -> str:
+    return iri.rstrip("/#").replace("#", "/").rsplit("/", 1)[-1] or iri

@@ -1,0 +1,192 @@
+"""Keeping views of the graph current from the journal's stream of new triples.
+
+A view (a report's rows, the graph index) is a `Projection`: built once from the whole store, then updated
+from what each applied journal step added, and emptied by a clearing. The `Projector` runs them all in one
+background thread fed by the applier, so every view follows the same stream in the same order. A view
+records the journal sequence it includes: after a restart it catches up from the journal instead of being
+built again.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+import time
+from dataclasses import dataclass
+from typing import Protocol
+
+from pyoxigraph import Quad, RdfFormat, parse
+
+from segb_server.backend.services.ingest.applier import Applied
+from segb_server.backend.services.ingest.journal import Journal
+from segb_server.backend.store.base import Store, StoreError
+
+logger = logging.getLogger("segb.views")
+
+BATCH_STEPS = 200  # applied steps handled together: one update per view for a burst of posts
+
+
+class Projection(Protocol):
+    name: str
+    ready: bool  # built (or caught up) since this server started: its answers can be served
+
+    def stored_through(self) -> int | None:
+        """The journal sequence the stored view includes, or None when it must be built (absent, or made by
+        another version of the view)."""
+
+    def build(self, through: int) -> None:
+        """Make the view from the whole store, which holds the journal through `through`."""
+
+    def update(self, quads: list[Quad], through: int) -> None:
+        """Add what `quads` (just added to the store) change; the view then includes the journal through
+        `through`."""
+
+    def clear(self, through: int) -> None:
+        """The graph was emptied at `through`."""
+
+
+@dataclass
+class _Marker:
+    done: threading.Event
+
+
+class Projector:
+    def __init__(self, store: Store, journal: Journal, projections: list[Projection]) -> None:
+        self.store = store
+        self.journal = journal
+        self.projections = projections
+        self._queue: queue.Queue[Applied | _Marker | None] = queue.Queue()
+        self._thread: threading.Thread | None = None
+        self._stopping = threading.Event()  # ends retry waits too: a store that never returns must not hold shutdown
+        self._progress = threading.Condition()
+        self.last_error: str | None = None
+        self.through = 0  # the journal entry every view is current through
+
+    def start(self) -> None:
+        self._thread = threading.Thread(target=self._run, name="segb-views", daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stopping.set()
+        self._queue.put(None)
+        if self._thread is not None:
+            self._thread.join(timeout=30)
+
+    def on_applied(self, step: Applied) -> None:
+        """The applier's listener: called in the applier's thread, so it only queues."""
+        self._queue.put(step)
+
+    def wait_until_current(self, timeout: float) -> bool:
+        """Wait until every step applied so far is in the views."""
+        done = threading.Event()
+        self._queue.put(_Marker(done))
+        return done.wait(timeout)
+
+    def wait_for(self, sequence: int, timeout: float) -> bool:
+        """Wait until the views include journal entry `sequence` (True), or `timeout` seconds passed."""
+        deadline = time.monotonic() + timeout
+        with self._progress:
+            while self.through < sequence or not all(p.ready for p in self.projections):
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    return False
+                self._progress.wait(remaining)
+        return True
+
+    def lag(self, applied: int) -> int:
+        """Journal entries the store has and the views do not have yet (0 before the views are first ready:
+        until then they are not what answers)."""
+        if not any(projection.ready for projection in self.projections):
+            return 0
+        return max(0, applied - self.through)
+
+    # --- the thread ----------------------------------------------------------------------------------
+
+    def _run(self) -> None:
+        while True:
+            try:
+                self._prepare_all()
+                break
+            except StoreError as error:
+                self.last_error = str(error)
+                logger.warning("building the views failed (%s); retrying", error)
+                if self._stopping.wait(2):
+                    return
+        while True:
+            steps: list[Applied | _Marker | None] = [self._queue.get()]
+            while not self._queue.empty() and len(steps) < BATCH_STEPS:
+                steps.append(self._queue.get())
+            if any(step is None for step in steps):
+                return
+            applied = [step for step in steps if isinstance(step, Applied)]
+            if applied and not self._process_retrying(applied):
+                return
+            for marker in steps:
+                if isinstance(marker, _Marker):
+                    marker.done.set()
+
+    def _process_retrying(self, applied: list[Applied]) -> bool:
+        """Process `applied`, retrying while the store is away; False when stopped meanwhile."""
+        while True:
+            try:
+                self._process(applied)
+                self.last_error = None
+                return True
+            except StoreError as error:
+                self.last_error = str(error)
+                logger.warning("keeping the views current failed (%s); retrying", error)
+                if self._stopping.wait(1):
+                    return False
+            except Exception:
+                logger.exception("keeping the views current failed; building them again")
+                through = applied[-1].entries[-1].sequence
+                for projection in self.projections:
+                    projection.build(through)
+                self._advance(through)
+                return True
+
+    def _prepare_all(self) -> None:
+        current = self.store.applied_through() or 0
+        for projection in self.projections:
+            stored = projection.stored_through()
+            if stored is None:
+                self._build(projection, current)
+            else:
+                self._catch_up(projection, stored, current)
+            projection.ready = True
+        self._advance(current)
+
+    def _build(self, projection: Projection, through: int) -> None:
+        started = time.perf_counter()
+        projection.build(through)
+        logger.info("view %s built in %.1f s", projection.name, time.perf_counter() - started)
+
+    def _catch_up(self, projection: Projection, stored: int, current: int) -> None:
+        """Apply what the store received while this server was not keeping the view current."""
+        if stored >= current:
+            return
+        entries = self.journal.entries_after(stored, current - stored)
+        if any(entry.action == "delete_all" for entry in entries):
+            self._build(projection, current)
+            return
+        quads = [quad for entry in entries if entry.content for quad in parse(entry.content, RdfFormat.N_TRIPLES)]
+        projection.update(quads, current)
+
+    def _process(self, steps: list[Applied]) -> None:
+        through = steps[-1].entries[-1].sequence
+        cleared = max((index for index, step in enumerate(steps) if step.cleared), default=-1)
+        if cleared >= 0:
+            at = steps[cleared].entries[-1].sequence
+            for projection in self.projections:
+                projection.clear(at)
+            steps = steps[cleared + 1 :]
+        quads = [quad for step in steps for quad in step.quads]
+        for projection in self.projections:
+            projection.update(quads, through)
+        self._advance(through)
+
+    def _advance(self, through: int) -> None:
+        with self._progress:
+            self.through = max(self.through, through)
+            self._progress.notify_all()
