@@ -1,7 +1,7 @@
 """Run the benchmarks and write docs/performance.md.
 
-    python -m bench                    # quick profile (about 2 minutes on 2 cores)
-    python -m bench --profile full     # the issue's full sizes (1,000 interactions, 1M triples)
+    python -m bench                    # quick profile (6 to 12 minutes on 2 cores, both stores)
+    python -m bench --profile full     # the issue's full sizes (1,000 interactions, reports at 1M triples)
     python -m bench --profile tiny --output /tmp/perf.md --no-virtuoso   # smoke run
 
 Servers run as separate processes (`segb serve --only api`, the naive baseline, Virtuoso) and are driven
@@ -11,25 +11,33 @@ over loopback HTTP, so the figures include the HTTP stack but never share an int
 from __future__ import annotations
 
 import argparse
+import os
+import pickle
+import shutil
+import subprocess
 import sys
 import tempfile
-import threading
 import time
+import traceback
 from dataclasses import dataclass
+from datetime import UTC, datetime
 from pathlib import Path
 
-import httpx
-
 from bench.breakdown import breakdown
-from bench.measure import Latency, machine, peak_rss_mib
+from bench.freshness import steady_lag
+from bench.live import live_reports
+from bench.measure import machine, peak_rss_mib
+from bench.names import BASELINE, ONE_REPORT, VIRTUOSO_JOURNAL, VIRTUOSO_STORE
+from bench.probes import ReadinessProbe
 from bench.report import Figures, write_report
-from bench.runs import cumulative, exported_triples, many_robots, probe_health, report_queries, small_posts
-from bench.server import baseline_server, null_server, segb_server
+from bench.runs import Cumulative, cumulative, journal_size, many_robots, small_posts, stored_triples
+from bench.server import ROOT, baseline_server, null_server, python_path, segb_server
 from bench.virtuoso import count_graph, measure_floor
-from bench.workloads import cumulative_posts, event_deltas, ntriples_of, replicate
+from bench.workloads import LivePost, cumulative_posts, event_deltas, live_posts, ntriples_of, replicate
 from tests.support.virtuoso import VirtuosoProcess
 
 GRAPH = "http://amor-segb/events"
+LIVE_RATE = 10.0  # posts per second of the robot publishing while reports are measured, and of the lag run
 
 
 @dataclass(frozen=True)
@@ -40,14 +48,16 @@ class Profile:
     interactions: int
     report_sizes: tuple[int, ...]
     report_repeats: int
-    virtuoso_report_repeats: int  # its reports take up to seconds each: fewer repeats keep the run short
+    steady_seconds: float  # how long one robot posts at LIVE_RATE for the apply lag
+    live_posts: int  # posts ready for the robot publishing while reports are measured (it stops when they run out)
 
 
 PROFILES = {
-    "tiny": Profile(30, 4, 6, 8, (2_000,), 3, 3),
-    "quick": Profile(300, 16, 30, 100, (10_000, 100_000), 20, 3),
-    "full": Profile(2_000, 16, 200, 1_000, (10_000, 100_000, 1_000_000), 30, 10),
+    "tiny": Profile(30, 4, 6, 8, (2_000,), 3, 2, 60),
+    "quick": Profile(300, 16, 100, 100, (100_000,), 20, 20, 3_000),
+    "full": Profile(2_000, 16, 200, 1_000, (100_000, 1_000_000), 30, 20, 6_000),
 }
+BREAKDOWN_POSTS = 300
 TRIPLES_PER_INTERACTION = 151
 INTERACTIONS_PER_COPY = 100
 
@@ -55,19 +65,28 @@ INTERACTIONS_PER_COPY = 100
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m bench", description=__doc__.split("\n\n")[0])
     parser.add_argument("--profile", choices=sorted(PROFILES), default="quick")
-    parser.add_argument("--output", type=Path, default=Path(__file__).resolve().parents[1] / "docs/performance.md")
+    parser.add_argument("--output", type=Path, default=ROOT / "docs/performance.md")
     parser.add_argument("--no-virtuoso", action="store_true", help="only the embedded store")
+    parser.add_argument("--code", default=code_version(), help="what code was measured, for the report's header")
+    parser.add_argument("--save-figures", type=Path, help="also keep the measured figures in this file (pickle)")
+    parser.add_argument("--from-figures", type=Path, help="measure nothing: write the report of saved figures")
+    parser.add_argument(
+        "--add-reports-from",
+        type=Path,
+        action="append",
+        default=[],
+        help="saved figures of another run whose report sizes this report lacks (say, 1M from a full run)",
+    )
     args = parser.parse_args(argv)
-    profile = PROFILES[args.profile]
-    started = time.perf_counter()
-    figures = Figures(profile=args.profile, machine=machine())
-    with tempfile.TemporaryDirectory(prefix="segb-bench-") as scratch:
-        root = Path(scratch)
-        loads = Loads.of(profile)
-        run_embedded(profile, loads, root, figures)
-        if not args.no_virtuoso:
-            run_virtuoso(profile, loads, root, figures)
-    figures.wall_seconds = time.perf_counter() - started
+    if args.from_figures:
+        figures = pickle.loads(args.from_figures.read_bytes())  # only files this command wrote
+    else:
+        figures = measure(args.profile, not args.no_virtuoso)
+        figures.code = args.code
+    for path in args.add_reports_from:
+        figures.add_reports(pickle.loads(path.read_bytes()))
+    if args.save_figures:
+        args.save_figures.write_bytes(pickle.dumps(figures))
     write_report(figures, args.output)
     print(figures.console_table())
     print(f"\nwrote {args.output} ({figures.wall_seconds:.0f} s)")
@@ -80,11 +99,32 @@ class Loads:
 
     deltas: list[str]
     robots: list[list[str]]
+    live: list[LivePost]
 
     @classmethod
     def of(cls, profile: Profile) -> Loads:
         robots = [event_deltas(profile.posts_per_robot, f"robot{i}") for i in range(profile.robots)]
-        return cls(event_deltas(profile.small_posts), robots)
+        return cls(event_deltas(profile.small_posts), robots, live_posts(profile.live_posts))
+
+
+def measure(name: str, virtuoso: bool) -> Figures:
+    profile = PROFILES[name]
+    started = time.perf_counter()
+    figures = Figures(profile=name, machine=machine(), virtuoso=virtuoso)
+    with tempfile.TemporaryDirectory(prefix="segb-bench-") as scratch:
+        root = Path(scratch)
+        loads = Loads.of(profile)
+        runs = [run_embedded, run_virtuoso] if virtuoso else [run_embedded]
+        for run in runs:
+            try:
+                run(profile, loads, root, figures)
+            except Exception as error:  # the report still holds what was measured, and says what stopped
+                traceback.print_exc()
+                figures.failures.append(f"{run.__name__} stopped: {type(error).__name__}: {error}")
+    figures.wall_seconds = time.perf_counter() - started
+    figures.finished = datetime.now(UTC)
+    figures.load_at_end = " / ".join(f"{load:.2f}" for load in os.getloadavg())
+    return figures
 
 
 def run_embedded(profile: Profile, loads: Loads, root: Path, figures: Figures) -> None:
@@ -95,32 +135,69 @@ def run_embedded(profile: Profile, loads: Loads, root: Path, figures: Figures) -
     with segb_server("oxigraph", root / "small") as server:
         figures.small[label] = small_posts(server.url, deltas, label)
     with segb_server("oxigraph", root / "quiet", {"LOGGING_LEVEL": "WARNING"}) as server:
-        # What the two INFO lines per post (request and ingest) cost, by leaving them out.
+        # What the INFO line per post (the request line) costs, by leaving it out.
         figures.small[f"{label}, LOGGING_LEVEL=WARNING"] = small_posts(server.url, deltas, f"{label}, quiet")
-    figures.breakdown = breakdown(deltas, root / "breakdown")
+    one_report = {"SPARQL_DIR": str(one_report_catalog(root))}
+    with segb_server("oxigraph", root / "small-one", one_report) as server:
+        # The same server keeping one report current instead of six: what the reports' upkeep costs the posts.
+        figures.small[ONE_REPORT] = small_posts(server.url, deltas, ONE_REPORT)
+    # A few hundred posts are enough for in-process medians, and each costs the reports' upkeep too.
+    figures.breakdown = breakdown(deltas[:BREAKDOWN_POSTS], root / "breakdown")
     with segb_server("oxigraph", root / "robots") as server:
-        figures.robots[label] = many_robots(server.url, robots, label, lambda: exported_triples(server.url))
+        count = lambda: stored_triples(server.url)  # noqa: E731
+        figures.robots[label] = many_robots(server.url, robots, label, count, readiness=True)
+    with segb_server("oxigraph", root / "robots-one", one_report) as server:
+        count = lambda: stored_triples(server.url)  # noqa: E731
+        figures.robots[ONE_REPORT] = many_robots(server.url, robots, ONE_REPORT, count, readiness=True)
     with null_server() as server:
         figures.robots_floor = many_robots(server.url, robots, "no-op server", lambda: 0)
+    with segb_server("oxigraph", root / "steady", {"INGEST_ACK": "journal"}) as server:
+        figures.steady[label] = steady_lag(server.url, deltas, LIVE_RATE, profile.steady_seconds)
     with segb_server("oxigraph", root / "cumulative") as server:
-        stop = threading.Event()
-        health: list[float] = []
-        prober = threading.Thread(target=lambda: health.extend(probe_health(server.url, stop)))
-        prober.start()
-        try:
-            posts = cumulative_posts(profile.interactions)
-            figures.cumulative[label] = cumulative(server.url, posts, label, profile.interactions)
-        finally:
-            stop.set()
-            prober.join()
-        figures.health_under_load = Latency.of(health)
+        with ReadinessProbe(server.url, 0.02) as probe:
+            run = cumulative(server.url, cumulative_posts(profile.interactions), label, profile.interactions)
+        # Exported only once nothing else is in flight: see stored_triples.
+        run.journal = journal_size(root / "cumulative", server.url, run.payload_bytes)
+        figures.cumulative[label] = run
+    figures.health_under_load = probe.latency()
     for size in profile.report_sizes:
         data_dir = root / f"reports-{size}"
         files = write_dataset(root, size)
-        segb_import(data_dir, files)
+        load_seconds = segb_import("oxigraph", data_dir, files)
         with segb_server("oxigraph", data_dir) as server:
-            figures.reports[(label, size)] = report_queries(server.url, profile.report_repeats, f"{label} {size}")
-            figures.peak_rss_mib[(f"API process, {label}", size)] = server.peak_rss_mib
+            measured = live_reports(server, count_lines(files), load_seconds, profile.report_repeats, loads.live,
+                                    LIVE_RATE)  # fmt: skip
+        figures.live[(label, size)] = measured
+        figures.peak_rss_mib[(f"API process, {label}", size)] = measured.peak_rss_mib
+
+
+def code_version() -> str:
+    """The checkout's commit, and whether it had changes not committed yet."""
+    try:
+        commit = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
+                                text=True, check=True).stdout.strip()  # fmt: skip
+        changed = subprocess.run(["git", "-C", str(ROOT), "status", "--porcelain"], capture_output=True, text=True,
+                                 check=True).stdout.strip()  # fmt: skip
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+    return f"commit {commit}" + (" with uncommitted changes" if changed else "")
+
+
+def one_report_catalog(root: Path) -> Path:
+    """A copy of the server's queries keeping only the participants report (for SPARQL_DIR)."""
+    folder = root / "sparql-one-report"
+    if not folder.exists():
+        shutil.copytree(ROOT / "sparql", folder)
+        for query in (folder / "reports").glob("*.rq"):
+            if query.name != "participants.rq":
+                query.unlink()
+    return folder
+
+
+def run_cumulative(url: str, data_dir: Path, interactions: int, label: str) -> Cumulative:
+    run = cumulative(url, cumulative_posts(interactions), label, interactions)
+    run.journal = journal_size(data_dir, url, run.payload_bytes)
+    return run
 
 
 def run_virtuoso(profile: Profile, loads: Loads, root: Path, figures: Figures) -> None:
@@ -131,38 +208,48 @@ def run_virtuoso(profile: Profile, loads: Loads, root: Path, figures: Figures) -
     try:
         deltas, robots = loads.deltas, loads.robots
 
-        def env(graph: str) -> dict[str, str]:
+        def env(graph: str, **more: str) -> dict[str, str]:
             return {
                 "VIRTUOSO_ENDPOINT": virtuoso.endpoint,
                 "VIRTUOSO_USER": virtuoso.user,
                 "VIRTUOSO_PASSWORD": virtuoso.password,
                 "VIRTUOSO_GRAPH_URI": graph,
+                **more,
             }
 
+        # Each server has a data directory of its own: the journal there is the source of its graph.
         figures.virtuoso_floor = measure_floor(virtuoso, GRAPH + "/floor", event_deltas(min(200, len(deltas)), "floor"))
-        with segb_server("virtuoso", root / "v", env(GRAPH + "/small")) as server:
-            figures.small[label] = small_posts(server.url, deltas, label)
+        with segb_server("virtuoso", root / "v-small", env(GRAPH + "/small")) as server:
+            figures.small[VIRTUOSO_JOURNAL] = small_posts(server.url, deltas, VIRTUOSO_JOURNAL)
+        with segb_server("virtuoso", root / "v-small-store", env(GRAPH + "/small-store", INGEST_ACK="store")) as server:
+            figures.small[VIRTUOSO_STORE] = small_posts(server.url, deltas, VIRTUOSO_STORE)
         with baseline_server(virtuoso.endpoint, virtuoso.user, virtuoso.password, GRAPH + "/baseline") as naive:
-            figures.small["naive baseline"] = small_posts(naive.url, deltas, "naive baseline")
-        with segb_server("virtuoso", root / "v", env(GRAPH + "/robots")) as server:
-            figures.robots[label] = many_robots(server.url, robots, label, lambda: exported_triples(server.url))
+            figures.small[BASELINE] = small_posts(naive.url, deltas, BASELINE)
+        with segb_server("virtuoso", root / "v-robots", env(GRAPH + "/robots")) as server:
+            count = lambda: stored_triples(server.url)  # noqa: E731
+            figures.robots[label] = many_robots(server.url, robots, label, count, readiness=True)
         naive_graph = GRAPH + "/baseline16"
         with baseline_server(virtuoso.endpoint, virtuoso.user, virtuoso.password, naive_graph) as naive:
             # The baseline has no export route: its graph is counted in Virtuoso itself.
-            figures.robots["naive baseline"] = many_robots(
-                naive.url, robots, "naive baseline", lambda: count_graph(virtuoso, naive_graph)
+            figures.robots[BASELINE] = many_robots(
+                naive.url, robots, BASELINE, lambda: count_graph(virtuoso, naive_graph)
             )
-        with segb_server("virtuoso", root / "v", env(GRAPH + "/cumulative")) as server:
-            posts = cumulative_posts(profile.interactions)
-            figures.cumulative[label] = cumulative(server.url, posts, label, profile.interactions)
+        with segb_server("virtuoso", root / "v-steady", env(GRAPH + "/steady", INGEST_ACK="journal")) as server:
+            figures.steady[label] = steady_lag(server.url, deltas, LIVE_RATE, profile.steady_seconds)
+        with segb_server("virtuoso", root / "v-cumulative", env(GRAPH + "/cumulative")) as server:
+            figures.cumulative[label] = run_cumulative(server.url, root / "v-cumulative", profile.interactions, label)
         for size in profile.report_sizes:
-            with segb_server("virtuoso", root / "v", env(f"{GRAPH}/reports{size}")) as server:
-                for path in write_dataset(root, size):
-                    post_ntriples(server.url, path)
-                repeats = profile.virtuoso_report_repeats
-                figures.reports[(label, size)] = report_queries(server.url, repeats, f"{label} {size}")
-                figures.peak_rss_mib[(f"API process, {label}", size)] = server.peak_rss_mib
-                figures.peak_rss_mib[("virtuoso-t (whole run so far)", size)] = _virtuoso_rss(virtuoso)
+            data_dir = root / f"v-reports-{size}"
+            settings = env(f"{GRAPH}/reports{size}")
+            files = write_dataset(root, size)
+            # The import applies what it journals (INGEST_ACK=store), so the server starts on a loaded store.
+            load_seconds = segb_import("virtuoso", data_dir, files, {**settings, "INGEST_ACK": "store"})
+            with segb_server("virtuoso", data_dir, settings) as server:
+                measured = live_reports(server, count_lines(files), load_seconds, profile.report_repeats,
+                                        loads.live, LIVE_RATE)  # fmt: skip
+            figures.live[(label, size)] = measured
+            figures.peak_rss_mib[(f"API process, {label}", size)] = measured.peak_rss_mib
+            figures.peak_rss_mib[("virtuoso-t (whole run so far)", size)] = _virtuoso_rss(virtuoso)
     finally:
         virtuoso.stop()
 
@@ -188,39 +275,28 @@ def write_dataset(root: Path, size: int) -> list[Path]:
     return sorted(folder.glob("*.nt"))
 
 
-def segb_import(data_dir: Path, files: list[Path]) -> None:
-    import subprocess
+def count_lines(files: list[Path]) -> int:
+    """Triples in N-Triples files (one a line)."""
+    total = 0
+    for path in files:
+        with path.open("rb") as file:
+            total += sum(1 for line in file if line.strip())
+    return total
 
-    from bench.server import ROOT
 
+def segb_import(store: str, data_dir: Path, files: list[Path], env: dict[str, str] | None = None) -> float:
+    """`segb import` of the files before any server runs on `data_dir`; the seconds it took."""
+    argv = ["-m", "segb_server.backend.cli", "import", "--store", store, "--data-dir", str(data_dir)]
+    begin = time.perf_counter()
     subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "segb_server.backend.cli",
-            "import",
-            "--store",
-            "oxigraph",
-            "--data-dir",
-            str(data_dir),
-            *map(str, files),
-        ],
+        [sys.executable, *argv, *map(str, files)],
         check=True,
         cwd=ROOT,
+        env={**os.environ, "PYTHONPATH": python_path(), **(env or {})},
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )
-
-
-def post_ntriples(url: str, path: Path, chunk_lines: int = 50_000) -> None:
-    lines = path.read_text(encoding="utf-8").splitlines(keepends=True)
-    with httpx.Client(base_url=url, timeout=600) as client:
-        for start in range(0, len(lines), chunk_lines):
-            client.post(
-                "/ttl",
-                content="".join(lines[start : start + chunk_lines]).encode(),
-                headers={"Content-Type": "application/n-triples"},
-            ).raise_for_status()
+    return time.perf_counter() - begin
 
 
 if __name__ == "__main__":

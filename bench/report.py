@@ -6,251 +6,333 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 
-from bench.analysis import breakdown_section, memory_section, robots_section, virtuoso_floor_section
+from bench import analysis
+from bench.crosscheck import UNCHECKED, check_of
+from bench.freshness import SteadyLag
+from bench.live import LiveReports
 from bench.measure import Latency
-from bench.runs import Cumulative, ManyRobots, ReportFigures, SmallPosts
+from bench.names import BASELINE, NO_OP, VIRTUOSO_JOURNAL, VIRTUOSO_STORE
+from bench.runs import Cumulative, ManyRobots, SmallPosts
+from bench.tables import table
+from bench.targets import targets
 from bench.virtuoso import Floor
-
-# Why the first query after a write grows with the graph, and what a bounded cost would take.
-REPORTS_EXPLAINED = [
-    "**Why a report's first query after a write grows with the graph.** Every report is an aggregate or a",
-    "sorted join over the whole graph: participants counts the activities of each human-robot pair, and the",
-    "timelines and conversations sort every emotion and message before the first page is cut. So the query",
-    "costs time in proportion to the activities logged, on both stores; the cache only helps until the next",
-    "write. On Virtuoso, participants (a four-branch UNION with a FILTER EXISTS) and the emotion timelines",
-    "are far slower than on the embedded store (their plans are not profiled yet). A bounded cost at 1M would take",
-    "maintaining each report's rows incrementally at ingest (a post's new triples touch only the rows of its",
-    "own activities, messages and emotions), kept in sort order so a page is a range scan; or a default time",
-    "window so a query touches a bounded slice. Neither is built. Virtuoso gets no result cache because",
-    "another writer could change it unseen; where this server is its only writer (the compose stack), the",
-    "embedded store's version-keyed cache would apply there too.",
-    "",
-]
 
 
 @dataclass
 class Figures:
     profile: str
     machine: dict[str, str]
+    virtuoso: bool = True
     small: dict[str, SmallPosts] = field(default_factory=dict)
     robots: dict[str, ManyRobots] = field(default_factory=dict)
+    steady: dict[str, SteadyLag] = field(default_factory=dict)
     cumulative: dict[str, Cumulative] = field(default_factory=dict)
     health_under_load: Latency | None = None
-    reports: dict[tuple[str, int], dict[str, ReportFigures | str]] = field(default_factory=dict)
+    live: dict[tuple[str, int], LiveReports] = field(default_factory=dict)
     peak_rss_mib: dict[tuple[str, int], float | None] = field(default_factory=dict)
     client_floor: SmallPosts | None = None
     robots_floor: ManyRobots | None = None
     breakdown: dict[str, Latency] = field(default_factory=dict)
     virtuoso_floor: Floor | None = None
     wall_seconds: float = 0.0
+    finished: datetime | None = None
+    failures: list[str] = field(default_factory=list)  # runs that stopped before the end
+    added_runs: list[str] = field(default_factory=list)  # where figures added from other runs come from
+    code: str = ""  # what was measured: a commit
+    load_at_end: str = ""
+
+    def add_reports(self, other: Figures) -> None:
+        """Section 5's sizes measured by another run (a longer profile) that this one lacks."""
+        self.__dict__.setdefault("added_runs", [])  # figures saved before this field existed
+        added = [key for key in other.live if key not in self.live]
+        for key in added:
+            self.live[key] = other.live[key]
+            for process in (f"API process, {key[0]}", "virtuoso-t (whole run so far)"):
+                if (process, key[1]) in other.peak_rss_mib:
+                    self.peak_rss_mib[(process, key[1])] = other.peak_rss_mib[(process, key[1])]
+        longer = {
+            f"{name}, {run.last.interactions:,} interactions ({other.profile} profile)": run
+            for name, run in other.cumulative.items()
+            if name in self.cumulative and run.last.interactions > self.cumulative[name].last.interactions
+        }
+        self.cumulative.update(longer)
+        if longer:
+            self.added_runs.append(f"Section 4 also holds {', '.join(longer)} from the run below.")
+        if added:
+            sizes = ", ".join(f"{store} {size:,}" for store, size in added)
+            finished = f"{other.finished:%Y-%m-%d}" if other.finished else "another day"
+            self.added_runs.append(
+                f"Section 5's rows for {sizes} triples come from `python -m bench --profile {other.profile}"
+                f"{'' if other.virtuoso else ' --no-virtuoso'}`, run on the same machine on {finished} "
+                f"({other.wall_seconds:.0f} s, load average at start {other.machine.get('load average at start')})."
+            )
 
     def console_table(self) -> str:
-        return "\n".join(line for line in _sections(self) if not line.startswith("<!--"))
-
-
-def _table(header: list[str], rows: list[list[str]]) -> list[str]:
-    return [
-        "| " + " | ".join(header) + " |",
-        "|" + "|".join("---" if i == 0 else "--:" for i in range(len(header))) + "|",
-        *("| " + " | ".join(row) + " |" for row in rows),
-        "",
-    ]
-
-
-def _floor_row(f: Figures) -> list[tuple[str, SmallPosts]]:
-    return [("no-op server (client + HTTP only)", f.client_floor)] if f.client_floor else []
-
-
-def _robots_floor_row(f: Figures) -> list[tuple[str, ManyRobots]]:
-    return [("no-op server (client + HTTP only)", f.robots_floor)] if f.robots_floor else []
-
-
-def _verdict(ok: bool) -> str:
-    return "met" if ok else "**not met**"
+        return "\n".join(_sections(self))
 
 
 def _sections(f: Figures) -> list[str]:
-    lines: list[str] = []
-    if f.small:
-        lines += ["### 1. Small posts (one event's delta, sequential, one client)", ""]
-        lines += _table(
-            ["server", "triples/post", "n", "p50 ms", "p95 ms", "p99 ms", "max ms", "posts/s"],
-            [
-                [
-                    name,
-                    f"{s.triples_per_post:.0f}",
-                    *s.latency.cells()[:1],
-                    *s.latency.cells()[1:],
-                    f"{s.posts_per_second:.0f}",
-                ]
-                for name, s in [*f.small.items(), *_floor_row(f)]
-            ],
-        )
-        if f.client_floor:
-            lines += [
-                "The no-op server answers at once (bench/null_server.py, same uvicorn HTTP parser and loop): its",
-                f"{f.client_floor.latency.p50:.2f} ms p50 is the client's own time plus loopback and HTTP, included"
-                " in every row",
-                "above. The bench client is the standard library's `http.client`; httpx costs about 0.5 ms more",
-                "per request.",
-                "",
-            ]
-        lines += breakdown_section(f.breakdown, f.small.get("embedded"), f.client_floor)
-        if "virtuoso" in f.small and "naive baseline" in f.small:
-            ours, naive = f.small["virtuoso"], f.small["naive baseline"]
-            speedup = naive.latency.p50 / ours.latency.p50
-            throughput = ours.posts_per_second / naive.posts_per_second
-            lines += [
-                f"On Virtuoso, against the naive baseline in the same run: p50 {speedup:.2f}x faster, "
-                f"throughput {throughput:.2f}x.",
-                "",
-            ]
-    if f.robots:
-        lines += ["### 2. Many robots (concurrent clients, each posting its own events)", ""]
-        lines += _table(
-            [
-                "server",
-                "posts",
-                "p50 ms",
-                "p95 ms",
-                "p99 ms",
-                "max ms",
-                "posts/s",
-                "triples/s",
-                "errors",
-                "triples sent",
-                "stored",
-            ],
-            [
-                [
-                    name,
-                    *r.latency.cells(),
-                    f"{r.posts_per_second:.0f}",
-                    f"{r.triples_per_second:.0f}",
-                    str(r.errors),
-                    str(r.triples_sent),
-                    str(r.triples_stored) if r is not f.robots_floor else "n/a",
-                ]
-                for name, r in [*f.robots.items(), *_robots_floor_row(f)]
-            ],
-        )
-        lines += robots_section(f.robots.get("embedded"), f.robots_floor)
-    if f.cumulative:
-        lines += ["### 3. Cumulative re-publish (the whole graph after every interaction)", ""]
-        for name, run in f.cumulative.items():
-            step = max(1, len(run.points) // 10)
-            picked = run.points[step - 1 :: step]
-            if picked[-1] is not run.last:
-                picked.append(run.last)
-            lines += [f"**{name}**", ""]
-            lines += _table(
-                ["interactions", "payload triples", "payload MB", "new triples", "latency ms"],
-                [
-                    [
-                        str(p.interactions),
-                        str(p.payload_triples),
-                        f"{p.payload_bytes / 1e6:.2f}",
-                        str(p.new_triples),
-                        f"{p.seconds * 1000:.0f}",
-                    ]
-                    for p in picked
-                ],
-            )
-    if any(f.reports.values()):
-        lines += [
-            "### 4. Report queries (`GET /reports/{name}`, default parameters, first page of up to 1,000 rows)",
-            "",
-            "Repeated requests are answered from the result cache on the embedded store (the cache is dropped",
-            "by every write); the last two columns are the first request after a write, i.e. the query itself.",
-            "Virtuoso has no cache (another writer could change it unseen), so both are the query.",
-            "",
-        ]
-        rows = []
-        for (store, size), reports in f.reports.items():
-            for name, measured in reports.items():
-                if isinstance(measured, str):
-                    rows.append([store, f"{size:,}", name, f"failed: {measured}", "", "", "", ""])
-                    continue
-                latency, count, fresh = measured
-                rows.append(
-                    [store, f"{size:,}", name, str(count), f"{latency.p50:.1f}", f"{latency.p95:.1f}",
-                     f"{fresh.p50:.1f}", f"{fresh.p95:.1f}"]
-                )  # fmt: skip
-        headers = ["store", "triples", "report", "rows", "p50 ms", "p95 ms", "after write p50", "after write p95"]
-        lines += _table(headers, rows)
-        lines += REPORTS_EXPLAINED
-    if f.health_under_load:
-        h = f.health_under_load
-        lines += ["### 5. Health under load (`/healthz/ready` while workload 3 runs on the embedded store)", ""]
-        lines += _table(["n", "p50 ms", "p95 ms", "p99 ms", "max ms"], [h.cells()])
-    lines += memory_section(f.peak_rss_mib)
-    if f.virtuoso_floor and "virtuoso" in f.small and "naive baseline" in f.small:
-        lines += virtuoso_floor_section(f.virtuoso_floor, f.small["virtuoso"], f.small["naive baseline"])
-    lines += ["### Targets", "", *_table(["target", "measured", "verdict"], _targets(f))]
+    return [
+        *_small_section(f),
+        *_robots_section(f),
+        *_steady_section(f),
+        *_cumulative_section(f),
+        *_live_section(f),
+        *_health_section(f),
+        *analysis.memory_section(f.peak_rss_mib),
+        *_floor_section(f),
+        *_failures_section(f),
+        "### Targets",
+        "",
+        *table(["target", "measured", "verdict"], targets(f)),
+    ]
+
+
+def _failures_section(f: Figures) -> list[str]:
+    if not f.failures:
+        return []
+    return ["### Runs that stopped", "", *(f"* {failure}" for failure in f.failures), ""]
+
+
+def _small_section(f: Figures) -> list[str]:
+    if not f.small:
+        return []
+    rows = [*f.small.items(), *([(NO_OP, f.client_floor)] if f.client_floor else [])]
+    lines = ["### 1. Small posts (one event's delta, sequential, one client)", ""]
+    lines += table(
+        ["server", "triples/post", "n", "p50 ms", "p95 ms", "p99 ms", "max ms", "posts/s"],
+        [[name, f"{s.triples_per_post:.0f}", *s.latency.cells(), f"{s.posts_per_second:.0f}"] for name, s in rows],
+    )
+    if f.client_floor:
+        lines += analysis.client_floor_note(f.client_floor)
+    lines += analysis.breakdown_section(f.breakdown, f.small.get("embedded"), f.client_floor)
+    lines += _baseline_ratio(f)
     return lines
 
 
-def _targets(f: Figures) -> list[list[str]]:
+def _baseline_ratio(f: Figures) -> list[str]:
+    naive = f.small.get(BASELINE)
+    if naive is None:
+        return []
+    lines = ["Against the naive baseline in the same run (its p50 over ours):", ""]
+    for name in (VIRTUOSO_JOURNAL, VIRTUOSO_STORE):
+        if ours := f.small.get(name):
+            lines.append(
+                f"* {name}: p50 {naive.latency.p50 / ours.latency.p50:.2f}x faster, p99 "
+                f"{naive.latency.p99 / ours.latency.p99:.2f}x, throughput "
+                f"{ours.posts_per_second / naive.posts_per_second:.2f}x."
+            )
+    lines += ["", *analysis.REFERENCE_NOTE]
+    return lines
+
+
+def _robots_section(f: Figures) -> list[str]:
+    if not f.robots:
+        return []
+    rows = [*f.robots.items(), *([(NO_OP, f.robots_floor)] if f.robots_floor else [])]
+    lines = ["### 2. Many robots (concurrent clients, each posting its own events)", ""]
+    lines += table(
+        ["server", "posts", "p50 ms", "p95 ms", "p99 ms", "max ms", "posts/s", "triples/s", "errors",
+         "triples sent", "stored"],
+        [[name, *r.latency.cells(), f"{r.posts_per_second:.0f}", f"{r.triples_per_second:.0f}", str(r.errors),
+          str(r.triples_sent), str(r.triples_stored) if r is not f.robots_floor else "n/a"] for name, r in rows],
+    )  # fmt: skip
+    lagged = [(name, r.lag) for name, r in f.robots.items() if r.lag is not None]
+    if lagged:
+        lines += [
+            "Readiness during the run (`/healthz/ready` every 50 ms) and after it (polled every 20 ms until",
+            "neither `apply_lag` nor `reports_lag` is reported):",
+            "",
+        ]
+        lines += table(
+            ["server", "samples", "samples behind", "max apply_lag entries", "max apply_lag s",
+             "max reports_lag entries", "store caught up after s", "reports caught up after s"],
+            [[name, str(lag.samples), str(lag.behind_samples), str(lag.max_entries), f"{lag.max_seconds:.3f}",
+              str(lag.max_reports_entries), _seconds(lag.drain.apply_seconds), _seconds(lag.drain.reports_seconds)]
+             for name, lag in lagged],
+        )  # fmt: skip
+    lines += analysis.robots_notes(f.robots.get("embedded"), f.robots_floor)
+    return lines
+
+
+def _steady_section(f: Figures) -> list[str]:
+    if not f.steady:
+        return []
+    lines = [
+        "### 3. Apply lag at a steady rate (one robot, 10 posts/s, `INGEST_ACK=journal` on both stores)",
+        "",
+        "From each post's 201 until a triple unique to that post is read from the store (`/resource`, run",
+        "in-process: the applier has written it), and until an `ASK` for it through `/sparql` answers true. Each",
+        "reader polls every 5 ms in a thread of its own; a reader still busy when the next post is answered",
+        "skips to the newest post instead of timing one late, so *n* is how many posts it timed.",
+        "",
+    ]
     rows = []
-    if small := f.small.get("embedded"):
-        rows.append(
-            [
-                "small posts, embedded: p50 ≤ 2 ms, p99 ≤ 10 ms",
-                f"p50 {small.latency.p50:.2f} ms, p99 {small.latency.p99:.2f} ms",
-                _verdict(small.latency.p50 <= 2 and small.latency.p99 <= 10),
-            ]
-        )
-    if "virtuoso" in f.small and "naive baseline" in f.small:
-        ratio = f.small["naive baseline"].latency.p50 / f.small["virtuoso"].latency.p50
-        rows.append(["small posts, Virtuoso: ≥ 5x the naive baseline", f"{ratio:.2f}x (p50)", _verdict(ratio >= 5)])
-    if robots := f.robots.get("embedded"):
-        rows.append(
-            [
-                "16 robots, embedded: ≥ 1,000 posts/s, p99 ≤ 50 ms, 0 errors, 0 lost",
-                f"{robots.posts_per_second:.0f} posts/s, p99 {robots.latency.p99:.1f} ms, {robots.errors} errors, "
-                f"{robots.triples_sent - robots.triples_stored} lost",
-                _verdict(
-                    robots.posts_per_second >= 1000
-                    and robots.latency.p99 <= 50
-                    and robots.errors == 0
-                    and robots.triples_stored == robots.triples_sent
-                ),
-            ]
-        )
+    for name, run in f.steady.items():
+        posted = f"{run.post_latency.p50:.1f} / {run.post_latency.p99:.1f}"
+        rows.append([name, str(run.posts), f"{run.rate:.1f}", posted, *_lag_cells(run.applied),
+                     *_lag_cells(run.visible), str(run.not_visible), str(run.errors)])  # fmt: skip
+    lines += table(
+        ["store", "posts", "posts/s", "post p50 / p99 ms", "in store n", "p50 / p99 / max ms", "/sparql n",
+         "p50 / p99 / max ms", "never visible", "errors"],
+        rows,
+    )  # fmt: skip
+    return lines + analysis.steady_notes(f.steady)
+
+
+def _cumulative_section(f: Figures) -> list[str]:
+    if not f.cumulative:
+        return []
+    lines = ["### 4. Cumulative re-publish (the whole graph after every interaction, the PyPI client's way)", ""]
     for name, run in f.cumulative.items():
-        rows.append(
-            [
-                f"cumulative re-publish, {name}: ≤ 1 s per post (at {run.last.interactions} interactions)",
-                f"{run.last.seconds:.2f} s for {run.last.payload_triples:,} triples",
-                _verdict(run.last.seconds <= 1),
-            ]
-        )
-    if f.reports:
-        largest = max(size for _, size in f.reports)
-        for (store, size), reports in f.reports.items():
-            measured = [figures for figures in reports.values() if not isinstance(figures, str)]
-            failed = len(reports) - len(measured)
-            if size == largest and measured:
-                for kind, pick in (("repeated", 0), ("first after a write", 2)):
-                    worst50 = max(figures[pick].p50 for figures in measured)  # type: ignore[union-attr]
-                    worst95 = max(figures[pick].p95 for figures in measured)  # type: ignore[union-attr]
-                    rows.append(
-                        [
-                            f"every report at {size:,} triples, {store}, {kind}: p50 ≤ 50 ms, p95 ≤ 150 ms",
-                            f"worst p50 {worst50:.1f} ms, worst p95 {worst95:.1f} ms"
-                            + (f", {failed} failed" if failed else ""),
-                            _verdict(worst50 <= 50 and worst95 <= 150 and not failed),
-                        ]
-                    )
-    if f.health_under_load:
-        rows.append(
-            [
-                "health p99 ≤ 100 ms during heavy ingest",
-                f"p99 {f.health_under_load.p99:.1f} ms",
-                _verdict(f.health_under_load.p99 <= 100),
-            ]
-        )
-    return rows
+        lines += [f"**{name}**", "", *table(
+            ["interactions", "payload triples", "payload MB", "new triples", "latency ms"],
+            [[str(p.interactions), str(p.payload_triples), f"{p.payload_bytes / 1e6:.2f}", str(p.new_triples),
+              f"{p.seconds * 1000:.0f}"] for p in _tenths(run)],
+        )]  # fmt: skip
+    journaled = [(name, run.journal) for name, run in f.cumulative.items() if run.journal]
+    if journaled:
+        lines += [
+            "The journal on disk after the last post (`DATA_DIR/ledger.sqlite3` and its `-wal`), against the final",
+            "graph as N-Triples (the server's own export) and everything the robot sent:",
+            "",
+        ]
+        lines += table(
+            ["store", "interactions", "journal MB", "of which -wal MB", "graph triples", "graph N-Triples MB",
+             "journal / N-Triples", "without -wal / N-Triples", "sent MB", "reports' rows MB"],
+            [[name, str(f.cumulative[name].last.interactions), _mb(j.database_bytes + j.wal_bytes),
+              _mb(j.wal_bytes), str(j.graph_triples), _mb(j.graph_ntriples_bytes),
+              f"{(j.database_bytes + j.wal_bytes) / j.graph_ntriples_bytes:.2f}",
+              f"{j.database_bytes / j.graph_ntriples_bytes:.2f}", _mb(j.payload_bytes),
+              _mb(getattr(j, "reports_bytes", 0))]
+             for name, j in journaled],
+        )  # fmt: skip
+        lines += analysis.JOURNAL_SIZE_NOTE
+    return lines
+
+
+def _lag_cells(latency: Latency | None) -> list[str]:
+    if latency is None:
+        return ["0", "-"]
+    return [str(latency.n), f"{latency.p50:.0f} / {latency.p99:.0f} / {latency.max:.0f}"]
+
+
+def _tenths(run: Cumulative) -> list:  # type: ignore[type-arg]
+    step = max(1, len(run.points) // 10)
+    picked = run.points[step - 1 :: step]
+    if picked[-1] is not run.last:
+        picked.append(run.last)
+    return picked
+
+
+def _live_section(f: Figures) -> list[str]:
+    if not f.live:
+        return []
+    lines = [
+        "### 5. Reports under live ingest",
+        "",
+        *analysis.LIVE_INTRO,
+        "",
+        "**Loading and start-up**",
+        "",
+        *table(
+            ["store", "triples", "load (`segb import`) s", "server ready s", "every report from rows s",
+             "slowest build (report, keys, s)"],
+            [[store, f"{size:,}", f"{live.load_seconds:.1f}", f"{live.ready_seconds:.1f}",
+              _seconds(live.rows_seconds), _slowest_build(live)] for (store, size), live in f.live.items()],
+        ),
+        "**Pages** (p50 / p95 ms; *next* is the page after it through the `next` cursor)",
+        "",
+    ]  # fmt: skip
+    rows = []
+    for (store, size), live in f.live.items():
+        for page in live.pages:
+            following = f"{page.next.p50:.1f} / {page.next.p95:.1f}" if page.next else "no next page"
+            if page.failure:
+                following += f"; failed: {page.failure}"
+            count = str(page.rows)
+            checked = check_of(page)
+            if checked == UNCHECKED:
+                count += " (its query could not be run to check)"
+            elif checked:
+                count += f" (**its query: {checked}**)"
+            rows.append([store, f"{size:,}", page.report, page.variant, count, page.served_from,
+                         f"{page.first.p50:.1f} / {page.first.p95:.1f}", following])  # fmt: skip
+    lines += table(["store", "triples", "report", "filters", "rows", "served from", "first page", "next page"], rows)
+    lines += ["**Graph and explanation** (p50 / p95 ms)", ""]
+    lines += table(
+        ["store", "triples", "view", "n", "p50 / p95 ms", "failed"],
+        [[store, f"{size:,}", view, str(got.latency.n), f"{got.latency.p50:.1f} / {got.latency.p95:.1f}",
+          got.failure or "-"] for (store, size), live in f.live.items() for view, got in live.views.items()],
+    )  # fmt: skip
+    lines += ["**The robot publishing meanwhile, and its rows**", ""]
+    lines += table(
+        [
+            "store",
+            "triples",
+            "posts",
+            "posts/s",
+            "post p50 / p99 ms",
+            "errors",
+            "rows visible after 201 p50 / p99 ms",
+            "n",
+            "never visible",
+            "max reports_lag entries",
+        ],
+        [_background_row(store, size, live) for (store, size), live in f.live.items()],
+    )
+    return lines + analysis.live_notes(f.live)
+
+
+def _background_row(store: str, size: int, live: LiveReports) -> list[str]:
+    robot = live.background
+    posted = Latency.of(robot.latencies) if robot.latencies else None
+    visible = Latency.of(robot.visible) if robot.visible else None
+    return [
+        store,
+        f"{size:,}",
+        str(robot.posts),
+        f"{robot.rate:.1f}",
+        f"{posted.p50:.1f} / {posted.p99:.1f}" if posted else "-",
+        str(robot.errors),
+        f"{visible.p50:.0f} / {visible.p99:.0f}" if visible else "-",
+        str(visible.n if visible else 0),
+        str(robot.not_visible),
+        str(live.lag.max_reports_entries),
+    ]
+
+
+def _slowest_build(live: LiveReports) -> str:
+    if not live.built:
+        return "-"
+    name, (keys, seconds) = max(live.built.items(), key=lambda item: item[1][1])
+    return f"{name}, {keys:,}, {seconds:.1f}"
+
+
+def _health_section(f: Figures) -> list[str]:
+    if not f.health_under_load:
+        return []
+    return [
+        "### 6. Health under load (`/healthz/ready` every 20 ms while workload 4 runs on the embedded store)",
+        "",
+        *table(["n", "p50 ms", "p95 ms", "p99 ms", "max ms"], [f.health_under_load.cells()]),
+    ]
+
+
+def _floor_section(f: Figures) -> list[str]:
+    ours, naive = f.small.get(VIRTUOSO_STORE), f.small.get(BASELINE)
+    if f.virtuoso_floor is None or ours is None or naive is None:
+        return []
+    lines = analysis.virtuoso_floor_section(f.virtuoso_floor, ours, f.small.get(VIRTUOSO_JOURNAL), naive)
+    return lines + analysis.journal_ack_note(f.breakdown, f.client_floor, f.small.get(VIRTUOSO_JOURNAL), naive)
+
+
+def _seconds(value: float | None) -> str:
+    return "not within the wait" if value is None else f"{value:.2f}"
+
+
+def _mb(size: int) -> str:
+    return f"{size / 1e6:.2f}"
 
 
 def write_report(f: Figures, path: Path) -> None:
@@ -258,16 +340,26 @@ def write_report(f: Figures, path: Path) -> None:
     header = [
         "# Performance",
         "",
-        f"Measured {datetime.now(UTC):%Y-%m-%d} with `python -m bench --profile {f.profile}` "
-        f"({f.wall_seconds:.0f} s). Server and clients on one machine, over loopback HTTP; each server runs in",
+        f"Measured {f.finished or datetime.now(UTC):%Y-%m-%d} with `python -m bench --profile {f.profile}"
+        f"{'' if f.virtuoso else ' --no-virtuoso'}` ({f.wall_seconds:.0f} s). Server and clients on one machine,"
+        " over loopback HTTP; each server runs in",
         "its own process. Payloads come from the emotion-mirror robot (`examples/emotion_mirror`) logging with",
         "the PyPI client `semantic-log-generator` 1.0.5. The naive baseline (`bench/baseline.py`) is the",
         "reference backend's ingest: rdflib parse and one `INSERT DATA` per post, blocking inside an async handler.",
         "",
-        "Machine: " + "; ".join(f"{key} {value}" for key, value in f.machine.items()) + ".",
+        *([f"Code measured: {f.code}.", ""] if getattr(f, "code", "") else []),
+        "Machine: "
+        + "; ".join(f"{key} {value}" for key, value in f.machine.items())
+        + (f"; load average at the end {f.load_at_end}" if getattr(f, "load_at_end", "") else "")
+        + ".",
         "",
-        "Reproduce: `python -m bench` (quick, about 2 minutes on 2 cores) or `python -m bench --profile full`",
-        "(the issue's sizes: 1,000 interactions, reports at 1M triples; expect well over half an hour).",
+        *analysis.MACHINE_NOTE,
         "",
+        "Reproduce: `python -m bench` (quick: 100 interactions, reports at 100,000 triples, both stores; 6 to 12",
+        "minutes here) or `python -m bench --profile full` (1,000 interactions, reports at 100,000 and 1,000,000",
+        "triples; add `--no-virtuoso` for the embedded store alone). `--save-figures` keeps what a run measured,",
+        "`--from-figures` writes this page again from it, and `--add-reports-from` adds another run's report sizes.",
+        "",
+        *(line for note in getattr(f, "added_runs", []) for line in (note, "")),
     ]
     path.write_text("\n".join(header + _sections(f)) + "\n", encoding="utf-8")

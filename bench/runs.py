@@ -6,7 +6,9 @@ import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import nullcontext
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import httpx
 from pyoxigraph import RdfFormat, parse
@@ -14,7 +16,11 @@ from tqdm import tqdm
 
 from bench.client import BenchError, Client
 from bench.measure import Latency
+from bench.probes import LagFigures, ReadinessProbe, wait_caught_up
 from bench.workloads import CumulativePost
+from segb_server.backend.services.ingest.journal import JOURNAL_FILE
+
+REPORTS_FILE = "reports.sqlite3"  # where the server keeps the reports' rows, beside the journal
 
 
 def triple_count(payload: str) -> int:
@@ -50,11 +56,31 @@ class ManyRobots:
     errors: int
     triples_sent: int
     triples_stored: int
+    lag: LagFigures | None = None  # a SEGB server's readiness during the run, and its catching up after it
 
 
-def many_robots(url: str, robots: list[list[str]], label: str, count_stored: Callable[[], int]) -> ManyRobots:
+def many_robots(
+    url: str, robots: list[list[str]], label: str, count_stored: Callable[[], int], *, readiness: bool = False
+) -> ManyRobots:
     """Every robot posts its own events concurrently (one thread and connection each); afterwards
-    `count_stored` tells how many triples the store holds (it started empty)."""
+    `count_stored` tells how many triples the store holds (it started empty). With `readiness`,
+    `/healthz/ready` is sampled during the run and polled after it until the store and the reports caught up,
+    and only then are the triples counted."""
+    probe = ReadinessProbe(url) if readiness else None
+    with probe or nullcontext():
+        seconds, errors, elapsed = _post_concurrently(url, robots, label)
+    lag = LagFigures.of(probe.samples, wait_caught_up(url)) if probe else None
+    distinct: set[object] = set()
+    for payloads in robots:
+        for payload in payloads:
+            distinct.update(parse(payload.encode(), RdfFormat.TURTLE))
+    posts = sum(map(len, robots))
+    return ManyRobots(
+        Latency.of(seconds), posts / elapsed, len(distinct) / elapsed, errors, len(distinct), count_stored(), lag
+    )
+
+
+def _post_concurrently(url: str, robots: list[list[str]], label: str) -> tuple[list[float], int, float]:
     seconds: list[float] = []
     errors = 0
     lock = threading.Lock()
@@ -79,21 +105,65 @@ def many_robots(url: str, robots: list[list[str]], label: str, count_stored: Cal
         list(pool.map(run, robots))
     elapsed = time.perf_counter() - started
     progress.close()
-    distinct: set[object] = set()
-    for payloads in robots:
-        for payload in payloads:
-            distinct.update(parse(payload.encode(), RdfFormat.TURTLE))
-    posts = sum(map(len, robots))
-    return ManyRobots(
-        Latency.of(seconds), posts / elapsed, len(distinct) / elapsed, errors, len(distinct), count_stored()
+    return seconds, errors, elapsed
+
+
+def stored_triples(url: str) -> int:
+    """Triples a SEGB server holds, counted through its own `/sparql`.
+
+    Not from its export: on the embedded store, GET /events can abort the server process when another request
+    is in flight while it streams (pyoxigraph's quad iterator is pulled from more than one thread), so the
+    export is only read once nothing else runs."""
+    answer = httpx.get(
+        f"{url}/sparql",
+        params={"query": "SELECT (COUNT(*) AS ?n) WHERE { ?s ?p ?o }"},
+        headers={"Accept": "application/sparql-results+json"},
+        timeout=600,
+    )
+    answer.raise_for_status()
+    return int(answer.json()["results"]["bindings"][0]["n"]["value"])
+
+
+def export_size(url: str) -> tuple[int, int]:
+    """Triples and bytes of a SEGB server's graph as N-Triples (its own export, GET /events)."""
+    triples = size = 0
+    with httpx.stream("GET", f"{url}/events", headers={"Accept": "application/n-triples"}, timeout=600) as response:
+        response.raise_for_status()
+        for line in response.iter_lines():
+            if line.strip():
+                triples += 1
+                size += len(line.encode()) + 1
+    return triples, size
+
+
+@dataclass(frozen=True)
+class JournalSize:
+    """The journal on disk after a run, against the graph it holds as N-Triples."""
+
+    database_bytes: int  # DATA_DIR/ledger.sqlite3
+    wal_bytes: int  # DATA_DIR/ledger.sqlite3-wal (not yet checkpointed into the database)
+    graph_triples: int
+    graph_ntriples_bytes: int
+    payload_bytes: int  # everything the robot sent, summed over its posts
+    reports_bytes: int = 0  # DATA_DIR/reports.sqlite3 and its -wal: the reports' rows, beside the journal
+
+
+def journal_size(data_dir: Path, url: str, payload_bytes: int) -> JournalSize:
+    database = data_dir / JOURNAL_FILE
+    wal = database.with_name(database.name + "-wal")
+    triples, size = export_size(url)
+    return JournalSize(
+        database.stat().st_size,
+        _size(wal),
+        triples,
+        size,
+        payload_bytes,
+        _size(data_dir / REPORTS_FILE) + _size(data_dir / f"{REPORTS_FILE}-wal"),
     )
 
 
-def exported_triples(url: str) -> int:
-    """Triples a SEGB server holds, counted from its own export (GET /events as N-Triples)."""
-    with httpx.stream("GET", f"{url}/events", headers={"Accept": "application/n-triples"}, timeout=600) as response:
-        response.raise_for_status()
-        return sum(1 for line in response.iter_lines() if line.strip())
+def _size(path: Path) -> int:
+    return path.stat().st_size if path.exists() else 0
 
 
 @dataclass
@@ -108,6 +178,11 @@ class CumulativePoint:
 @dataclass
 class Cumulative:
     points: list[CumulativePoint] = field(default_factory=list)
+    journal: JournalSize | None = None  # measured after the last post
+
+    @property
+    def payload_bytes(self) -> int:
+        return sum(point.payload_bytes for point in self.points)
 
     @property
     def last(self) -> CumulativePoint:
@@ -132,57 +207,3 @@ def cumulative(url: str, posts: list[CumulativePost] | object, label: str, total
                 )
             )
     return result
-
-
-def probe_health(url: str, stop: threading.Event, interval: float = 0.02) -> list[float]:
-    """`/healthz/ready` latencies, polled until `stop` is set (run in a thread beside a load)."""
-    seconds = []
-    with httpx.Client(base_url=url) as client:
-        while not stop.is_set():
-            begin = time.perf_counter()
-            client.get("/healthz/ready", timeout=10)
-            seconds.append(time.perf_counter() - begin)
-            time.sleep(interval)
-    return seconds
-
-
-ReportFigures = tuple[Latency, int, Latency]
-
-
-def report_queries(url: str, repeats: int, label: str) -> dict[str, ReportFigures | str]:
-    """Every report of `GET /reports`: latency of repeated requests (served from the result cache where the
-    store has one), latency of the first request after a write, and the row count; or, for a report the
-    server refused (say, a query timeout at 1M triples), what it answered."""
-    with httpx.Client(base_url=url, timeout=600) as client:
-        listing = client.get("/reports")
-        if listing.status_code != 200:
-            return {}
-        names = [report["name"] for report in listing.json()["reports"]]
-        figures: dict[str, ReportFigures | str] = {}
-        for name in tqdm(names, desc=f"reports · {label}", leave=False):
-            try:
-                figures[name] = _one_report(client, name, repeats)
-            except httpx.HTTPStatusError as error:
-                detail = " ".join(error.response.text[:120].replace("|", "/").split())  # fits a table cell
-                figures[name] = f"HTTP {error.response.status_code}: {detail}"
-    return figures
-
-
-def _one_report(client: httpx.Client, name: str, repeats: int) -> ReportFigures:
-    client.get(f"/reports/{name}").raise_for_status()  # warm caches once
-    seconds, rows = [], 0
-    for _ in range(repeats):
-        begin = time.perf_counter()
-        answer = client.get(f"/reports/{name}")
-        seconds.append(time.perf_counter() - begin)
-        answer.raise_for_status()
-        rows = len(answer.json()["rows"])
-    after_write = []
-    for tick in range(max(3, repeats // 4)):
-        # One new, unrelated triple: the store changed, so nothing cached may answer.
-        triple = f'<urn:bench:tick> <urn:bench:{name}> "{tick}" .\n'
-        client.post("/ttl", content=triple, headers={"Content-Type": "application/n-triples"}).raise_for_status()
-        begin = time.perf_counter()
-        client.get(f"/reports/{name}").raise_for_status()
-        after_write.append(time.perf_counter() - begin)
-    return Latency.of(seconds), rows, Latency.of(after_write)

@@ -18,21 +18,30 @@ from tests.support.net import free_port
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def python_path() -> str:
+    """This checkout first, then whatever PYTHONPATH already holds (so a run can point `segb_server` at a
+    snapshot of the code rather than the installed package)."""
+    return os.pathsep.join(part for part in (str(ROOT), os.environ.get("PYTHONPATH", "")) if part)
+
+
 class ServerProcess:
     """`with ServerProcess([...argv...], env) as server:` runs until the block ends; `server.url`."""
 
     def __init__(self, argv: list[str], env: dict[str, str], port: int, ready_path: str = "/healthz/ready") -> None:
         self.url = f"http://127.0.0.1:{port}"
         self._argv = argv
-        self._env = {**os.environ, "PYTHONPATH": str(ROOT), **env}
+        self._env = {**os.environ, "PYTHONPATH": python_path(), **env}
         self._ready_path = ready_path
         self._process: subprocess.Popen[bytes] | None = None
         self._log: IO[bytes] | None = None
+        self.started = 0.0  # time.monotonic() when the process was started
+        self.ready_seconds = 0.0  # from start until the ready path answered 200
 
     def __enter__(self) -> ServerProcess:
         # The server logs as in production (one line per request); a file, unlike a pipe nobody reads,
         # never fills up and stalls it.
         self._log = log = tempfile.TemporaryFile()
+        self.started = time.monotonic()
         self._process = subprocess.Popen(
             [sys.executable, *self._argv], env=self._env, stdout=subprocess.DEVNULL, stderr=log
         )
@@ -43,11 +52,20 @@ class ServerProcess:
                 raise RuntimeError(f"server exited: {log.read().decode()[-2000:]}")
             try:
                 if httpx.get(self.url + self._ready_path, timeout=2).status_code == 200:
+                    self.ready_seconds = time.monotonic() - self.started
                     return self
             except httpx.HTTPError:
                 pass
             time.sleep(0.1)
         raise RuntimeError(f"server at {self.url} not ready after 120 s")
+
+    def log_text(self) -> str:
+        """What the server logged so far (stderr)."""
+        if self._log is None:
+            return ""
+        # pread leaves the file offset alone: the server shares it and keeps appending at it.
+        descriptor = self._log.fileno()
+        return os.pread(descriptor, os.fstat(descriptor).st_size, 0).decode(errors="replace")
 
     @property
     def pid(self) -> int | None:

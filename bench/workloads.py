@@ -11,6 +11,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
 
+from pyoxigraph import Literal, RdfFormat, parse
 from rdflib import Graph
 
 from segb_server.examples.emotion_mirror.mission import EmotionMirrorMission, RobotConfig
@@ -127,3 +128,45 @@ def replicate(ntriples: str, copies: int, robot_name: str = "mirror") -> Iterato
         if copy:
             text = text.replace("2026-03-10T", f"2026-03-{10 + copy % 18:02d}T")
         yield text
+
+
+@dataclass(frozen=True)
+class LivePost:
+    """One event's delta, with the messages it adds and a time at or before every activity it logs (so a
+    report filtered `since` it holds its rows)."""
+
+    payload: str
+    messages: tuple[str, ...]
+    since: str
+
+
+SCHEMA_MESSAGE = "http://schema.org/Message"
+RDF_TYPE = "http://www.w3.org/1999/02/22-rdf-syntax-ns#type"
+XSD_DATETIME = "http://www.w3.org/2001/XMLSchema#dateTime"
+ROBOT_CLASS = "http://kb.openrobots.org#Robot"
+
+
+def live_posts(count: int, robot_name: str = "live") -> list[LivePost]:
+    """`count` event deltas of one robot, each with the IRIs of the messages it adds."""
+    posts = []
+    for payload in event_deltas(count, robot_name):
+        quads = list(parse(payload.encode(), RdfFormat.TURTLE))
+        messages = tuple(
+            q.subject.value for q in quads if q.predicate.value == RDF_TYPE and q.object.value == SCHEMA_MESSAGE
+        )
+        times = [
+            datetime.fromisoformat(q.object.value)
+            for q in quads
+            if isinstance(q.object, Literal) and q.object.datatype.value == XSD_DATETIME
+        ]
+        since = (min(times) - timedelta(minutes=1)).isoformat() if times else T0.isoformat()
+        posts.append(LivePost(payload, messages, since))
+    return posts
+
+
+def robot_of(payload: str) -> str:
+    """The IRI of the robot a payload describes (its first post names it)."""
+    for quad in parse(payload.encode(), RdfFormat.TURTLE):
+        if quad.predicate.value == RDF_TYPE and quad.object.value == ROBOT_CLASS:
+            return quad.subject.value
+    raise ValueError("the payload names no robot")

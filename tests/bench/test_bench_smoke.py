@@ -24,14 +24,20 @@ def test_tiny_profile_writes_a_report_with_measured_figures(tmp_path: Path) -> N
     for heading in (
         "### 1. Small posts",
         "### 2. Many robots",
-        "### 3. Cumulative re-publish",
-        "### 4. Report queries",
+        "### 3. Apply lag at a steady rate",
+        "### 4. Cumulative re-publish",
+        "### 5. Reports under live ingest",
         "### Memory",
         "### Targets",
     ):
         assert heading in report
     assert "| no-op server (client + HTTP only) |" in report
-    assert "| ledger receipt (SQLite) |" in report  # the in-process breakdown of a small post
+    assert "| journal append (SQLite) |" in report  # the in-process breakdown of a small post
+    # Every report's first page was served from its rows while a robot kept publishing.
+    pages = re.findall(r"\| embedded \| 2,000 \| ([\w-]+) \| ([^|]+) \| \d+ \| (\w+) \|", report)
+    assert {name for name, _, _ in pages} >= {"conversations", "participants", "robot-states"}, report
+    assert {served for _, _, served in pages} == {"rows"}
+    assert re.search(r"\| embedded \| 8 \| [\d.]+ \| [\d.]+ \| 1095 \|", report)  # the journal's size, measured
     assert re.search(r"\| API process, embedded \| 2,000 \| \d+ \|", report)
     # Nothing lost: the embedded store's export holds exactly the distinct triples the robots sent.
     robots = re.search(r"\| embedded \| 24 \|(?: [^|]+ \|){7} (\d+) \| (\d+) \|", report)
