@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import queue
 import threading
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from itertools import islice
 from pathlib import Path
 
@@ -107,13 +108,56 @@ class OxigraphStore:
             raise StoreUnavailable(str(error)) from error
 
     def batches(self, size: int) -> Iterator[list[Quad]]:
-        quads = self._store.quads_for_pattern(None, None, None, DefaultGraph())
-        while batch := list(islice(quads, size)):
-            yield batch
+        """pyoxigraph's iterators are unsendable (resumed on another thread, they abort the process), while an
+        export is resumed by whichever worker thread writes the answer's next chunk: one thread of its own
+        reads the store and hands the batches over."""
+        return read_on_one_thread(lambda: self._store.quads_for_pattern(None, None, None, DefaultGraph()), size)
 
     def close(self) -> None:
         self._store.flush()
         del self._store
+
+
+_END = object()
+
+
+def read_on_one_thread(open_quads: Callable[[], Iterator[Quad]], size: int) -> Iterator[list[Quad]]:
+    """Batches of `size` quads from the iterator `open_quads` makes, read on a thread that owns it; two batches
+    ahead at most. Closing the returned generator (a client gone) stops the reader."""
+    handover: queue.Queue[object] = queue.Queue(maxsize=2)
+    stopped = threading.Event()
+
+    def hand_over(item: object) -> bool:
+        while not stopped.is_set():
+            try:
+                handover.put(item, timeout=0.2)
+                return True
+            except queue.Full:
+                continue
+        return False
+
+    def read() -> None:
+        try:
+            quads = open_quads()
+            while batch := list(islice(quads, size)):
+                if not hand_over(batch):
+                    return
+            hand_over(_END)
+        except Exception as error:  # raised to the reader of the batches
+            hand_over(error)
+
+    def batches() -> Iterator[list[Quad]]:
+        reader = threading.Thread(target=read, name="segb-store-reader", daemon=True)
+        reader.start()
+        try:
+            while (item := handover.get()) is not _END:
+                if isinstance(item, Exception):
+                    raise item
+                yield item  # type: ignore[misc]
+        finally:
+            stopped.set()
+
+    return batches()
 
 
 def _cursor(through: int) -> Quad:

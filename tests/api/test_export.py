@@ -1,0 +1,50 @@
+"""Exports of a graph larger than one batch, several at once, on the embedded store: each answer is whole.
+The export reads the store a batch at a time while the server writes the answer, from whichever worker
+thread is free; pyoxigraph's iterators must stay on the thread that made them."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import httpx
+import pytest
+from pyoxigraph import RdfFormat, parse
+
+from segb_server.backend.api.app import create_app
+from segb_server.backend.services.views.export import BATCH_TRIPLES
+from segb_server.backend.store.oxigraph import OxigraphStore
+from tests.conftest import make_settings
+from tests.support.live_server import LiveServer
+from tests.support.settle import settle
+
+TRIPLES = BATCH_TRIPLES * 3 + 17
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    root: Path = tmp_path_factory.mktemp("export")
+    store = OxigraphStore("http://amor-segb/events", root / "oxigraph")
+    with LiveServer(create_app(make_settings(store="oxigraph", data_dir=root), store=store)) as live:
+        lines = "".join(f"<https://e.org/s{i}> <https://e.org/p> \"v{i}\" .\n" for i in range(TRIPLES))
+        answer = httpx.post(
+            f"{live.url}/ttl", content=lines, headers={"Content-Type": "application/n-triples"}, timeout=120
+        )
+        assert answer.status_code == 201, answer.text
+        settle(live.url)
+        yield live.url
+    store.close()
+
+
+@pytest.mark.parametrize("media", ["application/n-triples", "text/turtle"])
+def test_concurrent_exports_of_several_batches_are_each_whole(server: str, media: str) -> None:
+    def export(_: int) -> tuple[int, int]:
+        answer = httpx.get(f"{server}/events", headers={"Accept": media}, timeout=120)
+        fmt = RdfFormat.N_TRIPLES if media == "application/n-triples" else RdfFormat.TURTLE
+        return answer.status_code, sum(1 for _ in parse(answer.content, fmt)) if answer.status_code == 200 else -1
+
+    with ThreadPoolExecutor(6) as pool:
+        answers = list(pool.map(export, range(12)))
+    assert answers == [(200, TRIPLES)] * 12
+    assert export(0) == (200, TRIPLES)  # and the server still answers afterwards
