@@ -33,7 +33,7 @@ from segb_server.backend.store.terms import bind_rows, bind_values, term_text
 
 logger = logging.getLogger("segb.reports")
 
-PLAN_VERSION = "1"  # bump when the stored layout changes: every report is then built again
+PLAN_VERSION = "2"  # bump when the stored layout changes: every report is then built again
 VALUES_PER_QUERY = 300
 CHANGES_KEPT = 20_000
 
@@ -89,6 +89,8 @@ class ReportProjection:
         self.rows.create(self.layout, fresh=True)
         rows = self._evaluate(None)
         self.rows.replace(self.layout, rows, rows, through)
+        for facet in self.layout.plan.facet_filters:
+            self._update_facet(facet, None)
         self.rows.set_state(self.name, self.fingerprint, through)
         logger.info("report %s built: %d keys", self.name, len(rows))
 
@@ -126,20 +128,25 @@ class ReportProjection:
                     grouped.setdefault(term_text(unit), []).append(row)
         return grouped
 
-    def _update_facet(self, facet: FacetFilter, anchors: list[str]) -> None:
+    def _update_facet(self, facet: FacetFilter, anchors: list[str] | None) -> None:
+        """The facet's values for `anchors` replaced (None: for every anchor, when the report is built)."""
         variable = PARAMETER_VARIABLE_PREFIX + facet.parameter
         branches = " UNION ".join("{ " + " ".join(p.sparql() for p in body) + " }" for body in facet.bodies)
+        selected = f"SELECT DISTINCT {facet.anchor} ?{variable}"
+        chunks = (
+            [None]
+            if anchors is None
+            else [anchors[i : i + VALUES_PER_QUERY] for i in range(0, len(anchors), VALUES_PER_QUERY)]
+        )
         pairs: list[tuple[str, str]] = []
-        for start in range(0, len(anchors), VALUES_PER_QUERY):
-            chunk = anchors[start : start + VALUES_PER_QUERY]
-            values = " ".join(chunk)
-            selected = f"SELECT DISTINCT {facet.anchor} ?{variable}"
-            query = f"{selected} WHERE {{ VALUES {facet.anchor} {{ {values} }} {branches} }}"
-            for row in select(self.store, query).rows:
+        for chunk in chunks:
+            values = "" if chunk is None else f"VALUES {facet.anchor} {{ {' '.join(chunk)} }} "
+            for row in select(self.store, f"{selected} WHERE {{ {values}{branches} }}").rows:
                 anchor, value = row.get(facet.anchor[1:]), row.get(variable)
                 if anchor is not None and value is not None:
                     pairs.append((term_text(anchor), term_text(value)))
-        self.rows.replace_facets(self.layout, facet.parameter, anchors, pairs)
+        replaced = sorted({anchor for anchor, _ in pairs}) if anchors is None else anchors
+        self.rows.replace_facets(self.layout, facet.parameter, replaced, pairs)
 
 
 def units_touched(plan: ReportPlan, unit: str, quads: list[Quad], store: Store) -> set[str]:
