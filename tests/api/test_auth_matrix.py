@@ -36,6 +36,7 @@ REQUIRED_ROLE: dict[tuple[str, str], str | None] = {
     ("GET", "/reports"): "auditor",
     **{("GET", f"/reports/{name}"): "auditor" for name in REPORTS},
     ("GET", "/reports/stream"): "auditor",
+    ("GET", "/graph/stream"): "auditor",
     ("GET", "/graph"): "auditor",
     ("GET", "/resource"): "auditor",
     ("GET", "/explain"): "auditor",

@@ -39,7 +39,9 @@ def served(url: str, request: GraphRequest) -> dict[str, object]:
         params.update(focus=request.focus, depth=request.depth)
     answer = httpx.get(f"{url}/graph", params=params, timeout=60)
     assert answer.status_code == 200, answer.text
-    return answer.json()
+    body = answer.json()
+    assert isinstance(body.pop("through"), int)  # the journal entry the drawing includes, for live viewers
+    return body
 
 
 def fresh(store: Store, request: GraphRequest) -> dict[str, object]:

@@ -1,5 +1,6 @@
-"""/live/reports: the API's stream of report changes (Server-Sent Events), relayed with the viewer's session,
-so the page's script connects to its own origin (the CSP allows nothing else) and no token is ever in a URL."""
+"""/live/reports and /live/graph: the API's streams of view changes (Server-Sent Events), relayed with the
+viewer's session, so the page's script connects to its own origin (the CSP allows nothing else) and no token
+is ever in a URL."""
 
 from __future__ import annotations
 
@@ -18,12 +19,21 @@ STREAM_TIMEOUT = httpx.Timeout(10.0, read=None)
 
 @router.get("/live/reports")
 async def live_reports(request: Request) -> StreamingResponse:
+    return await _relay(request, "/reports/stream", {"report": request.query_params.getlist("report")})
+
+
+@router.get("/live/graph")
+async def live_graph(request: Request) -> StreamingResponse:
+    return await _relay(request, "/graph/stream", {})
+
+
+async def _relay(request: Request, path: str, params: dict[str, list[str]]) -> StreamingResponse:
     # A reconnecting EventSource sends Last-Event-ID; a page resuming after a pause passes `after=` instead.
     resume = request.headers.get("last-event-id") or request.query_params.get("after")
     answer = await backend(request).open_stream(
-        "/reports/stream",
+        path,
         token=token(request),
-        params={"report": request.query_params.getlist("report")},
+        params=params,
         headers={"Last-Event-ID": resume} if resume else None,
         timeout=STREAM_TIMEOUT,
     )

@@ -179,6 +179,7 @@
         "text-max-width": 260, "text-background-color": "#ffffff", "text-background-opacity": 0.9 } },
       { selector: "node.folded", style: { "display": "none" } },
       { selector: "node:selected", style: { "border-width": 4, "border-color": "#f4511e" } },
+      { selector: "node.fresh", style: { "border-width": 4, "border-color": "#ff8f00", "min-zoomed-font-size": 0 } },
       { selector: "node.focused", style: { "border-width": 4, "border-color": "#12203f", "border-style": "double" } },
       { selector: "node.found", style: { "border-width": 5, "border-color": "#f4511e", "width": 34, "height": 34 } },
       { selector: "edge", style: large ? {
@@ -271,7 +272,9 @@
       window.segbGraph = {
         ready: true, nodes: cy.nodes().length, edges: cy.edges().length, ms: elapsed,
         fetchMs: Math.round(fetchedAt - started), drawMs: Math.round(performance.now() - fetchedAt),
-        labelsShown: labelsShown
+        labelsShown: labelsShown,
+        has: function (id) { return cy.getElementById(id).nonempty(); },
+        isFresh: function (id) { return cy.getElementById(id).hasClass("fresh"); }
       };
       container.dataset.ready = "true";
       container.dataset.renderMs = String(elapsed);
@@ -333,14 +336,14 @@
     cy.add(data.edges.filter(function (e) { return cy.getElementById(e.id).empty(); }).map(edgeElement));
     updateStats();
     refreshList();
-    return fresh.length;
+    return fresh;
   }
 
   function expand(id) {
     var node = cy.getElementById(id);
     fetchJson("/kg-graph/data?" + new URLSearchParams({ focus: id, depth: "1", limit: "400" })).then(function (data) {
       var added = merge(data, node);
-      stats.textContent += " · expanded: " + added + " new nodes";
+      stats.textContent += " · expanded: " + added.length + " new nodes";
     }).catch(showError);
   }
 
@@ -558,6 +561,54 @@
     refreshList();
   });
 
+  /* --- live: what robots publish joins the drawing ----------------------------------------------------
+   * One Server-Sent Events stream (relayed by this UI with the viewer's session) says the graph changed; the
+   * page's own view is fetched again and what is new merged in, marked for a moment. Nodes already drawn keep
+   * their place; the node panel and the focus stay. A button pauses and resumes (resuming fetches once if
+   * anything changed meanwhile). */
+
+  var liveToggle = document.getElementById("graph-live");
+  var liveSource = null, liveTimer = null, liveId = "";
+
+  function refreshLive() {
+    liveTimer = null;
+    if (!cy) { return; }
+    fetchJson(container.dataset.src).then(function (data) {
+      var added = merge(data, null);
+      if (!added.length) { return; }
+      var nodes = cy.collection(added.map(function (n) { return cy.getElementById(n.id); }));
+      nodes.addClass("fresh");
+      window.setTimeout(function () { nodes.removeClass("fresh"); }, 4000);
+      announce.textContent = added.length + " new " + (added.length === 1 ? "node" : "nodes") + " published";
+    }).catch(showError);
+  }
+
+  function startLive() {
+    liveSource = new EventSource("/live/graph" + (liveId ? "?after=" + encodeURIComponent(liveId) : ""));
+    liveSource.addEventListener("change", function (event) {
+      liveId = event.lastEventId || liveId;
+      if (!liveTimer) { liveTimer = window.setTimeout(refreshLive, 300); }  // a burst of posts: one fetch
+    });
+    liveToggle.setAttribute("aria-pressed", "true");
+    liveToggle.textContent = "Live updates: on";
+  }
+
+  function stopLive() {
+    if (liveSource) { liveSource.close(); }
+    liveSource = null;
+    liveToggle.setAttribute("aria-pressed", "false");
+    liveToggle.textContent = "Live updates: paused";
+  }
+
   buildLanes();
-  fetchJson(container.dataset.src).then(function (data) { fetchedAt = performance.now(); draw(data); }).catch(showError);
+  fetchJson(container.dataset.src).then(function (data) {
+    fetchedAt = performance.now();
+    draw(data);
+    liveId = data.through === undefined ? "" : String(data.through);  // changes after the drawing's own
+    if (liveToggle && window.EventSource) {
+      liveToggle.hidden = false;
+      liveToggle.addEventListener("click", function () { if (liveSource) { stopLive(); } else { startLive(); } });
+      startLive();
+    }
+  }).catch(showError);
 })();

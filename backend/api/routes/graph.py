@@ -37,11 +37,12 @@ def _time(name: str, value: str | None) -> str | None:
     summary="Nodes and edges of the knowledge graph",
     description=(
         "`{nodes: [{id, label, kind, types, time?}], edges: [{id, source, target, predicate, label}], truncated, "
-        "total_nodes, matches}`. `kind` is robot, human, activity, message, emotion, model, shared-event, state "
-        "or other. Filters: `robot` (its activities, states and what they touched), `since`/`until`, `types` "
+        "total_nodes, matches, through}`. `kind` is robot, human, activity, message, emotion, model, shared-event, "
+        "state or other. Filters: `robot` (its activities, states and what they touched), `since`/`until`, `types` "
         "(comma-separated kinds or classes), `focus` with `depth` (neighbourhood), `q` (label search: matches "
         "and their neighbours; `matches` lists the hits). Most relevant nodes first; `truncated` when `limit` "
-        "cut some off. Literals are not nodes: read them with `/resource`."
+        "cut some off; `through`, the journal entry the drawing includes (a `GET /graph/stream` event newer than "
+        "it means: fetch again). Literals are not nodes: read them with `/resource`."
     ),
 )
 async def graph(

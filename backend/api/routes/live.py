@@ -1,12 +1,14 @@
-"""GET /reports/stream: Server-Sent Events telling readers which reports' rows changed, as the rows are kept
-current. One stream serves every report (a page showing six reports needs one connection). Resumable: an `id`
-per event, and `Last-Event-ID` on reconnection replays what was missed (the last changes are kept; an older id
-gets a `reset` event: reload)."""
+"""Server-Sent Events telling readers that a view changed, as the views are kept current from the journal.
+
+`GET /reports/stream` says which reports' rows changed; one stream serves every report (a page showing six
+reports needs one connection). Resumable: an `id` per event, and `Last-Event-ID` on reconnection replays what
+was missed (the last changes are kept; an older id gets a `reset` event: reload). `GET /graph/stream` says
+that the drawable graph changed; a viewer fetches its view again, so a reconnection needs no replay."""
 
 from __future__ import annotations
 
 import json
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Awaitable, Callable
 
 import anyio
 from fastapi import APIRouter, Query, Request
@@ -44,21 +46,79 @@ async def stream(
         raise NotFound("This server keeps no live reports.")
     rows = maintainer.rows
     resume = request.headers.get("last-event-id", "")
+    last = int(resume) if resume.isdigit() else 0
+
+    async def changes() -> list[bytes]:
+        nonlocal last
+        found = await anyio.to_thread.run_sync(rows.changes_since, last)
+        if not found:
+            return []
+        last = found[-1][0]
+        return [
+            f"id: {last}\nevent: change\ndata: "
+            f"{json.dumps({'report': name.removeprefix(f'{FOLDER}/'), 'units': sorted(units)})}\n\n".encode()
+            for name, units in _by_report(found, wanted).items()
+        ]
+
+    async def opening() -> list[bytes]:
+        nonlocal last
+        oldest = await anyio.to_thread.run_sync(rows.oldest_change)
+        if resume.isdigit():
+            return [b"event: reset\ndata: {}\n\n"] if last < oldest - 1 else []
+        last = await anyio.to_thread.run_sync(rows.last_change)
+        return []
+
+    return _event_stream(request, opening, changes)
+
+
+@router.get(
+    "/graph/stream",
+    tags=["graph"],
+    summary="Changes of the drawable graph, live (Server-Sent Events)",
+    description=(
+        'An `event: change` with `data: {"through": n}` whenever what `GET /graph` draws changed (new nodes, '
+        "links, labels or times, or a clearing); `n`, also the event's `id`, is the journal entry the graph now "
+        "includes. Fetch the view again on each. With `Last-Event-ID` older than the graph, one change is sent at "
+        "once. A comment every 15 s keeps idle connections open."
+    ),
+    response_class=StreamingResponse,
+    responses={200: {"content": {"text/event-stream": {}}}},
+)
+async def graph_stream(request: Request, services: ServicesDep, principal: Auditor) -> StreamingResponse:
+    index = services.graph.index
+    resume = request.headers.get("last-event-id", "")
+    seen = -1 if resume and resume != str(index.changed_through) else index.changed_through
+
+    async def changes() -> list[bytes]:
+        nonlocal seen
+        current = index.changed_through
+        if current == seen:
+            return []
+        seen = current
+        return [f"id: {current}\nevent: change\ndata: {json.dumps({'through': current})}\n\n".encode()]
+
+    async def opening() -> list[bytes]:
+        return []
+
+    return _event_stream(request, opening, changes)
+
+
+def _event_stream(
+    request: Request, opening: Callable[[], Awaitable[list[bytes]]], changes: Callable[[], Awaitable[list[bytes]]]
+) -> StreamingResponse:
+    """An event stream: `opening`'s events, then `changes`' events polled until the reader leaves, with a
+    keep-alive comment when quiet."""
 
     async def events() -> AsyncIterator[bytes]:
-        last = int(resume) if resume.isdigit() else await anyio.to_thread.run_sync(rows.last_change)
-        oldest = await anyio.to_thread.run_sync(rows.oldest_change)
-        if resume.isdigit() and last < oldest - 1:
-            yield b"event: reset\ndata: {}\n\n"
+        for event in await opening():
+            yield event
         yield b"retry: 2000\n\n"
         quiet = 0.0
         while not await request.is_disconnected():
-            changes = await anyio.to_thread.run_sync(rows.changes_since, last)
-            if changes:
-                last = changes[-1][0]
-                for name, units in _by_report(changes, wanted).items():
-                    data = json.dumps({"report": name.removeprefix(f"{FOLDER}/"), "units": sorted(units)})
-                    yield f"id: {last}\nevent: change\ndata: {data}\n\n".encode()
+            found = await changes()
+            for event in found:
+                yield event
+            if found:
                 quiet = 0.0
             elif quiet >= KEEP_ALIVE_SECONDS:
                 yield b": keep-alive\n\n"

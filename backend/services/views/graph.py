@@ -47,7 +47,8 @@ class GraphService:
         """The nodes and edges to draw; blocking (SQLite)."""
         if not self.index.ready and not self.wait_ready(READY_WAIT_SECONDS):
             raise ViewNotReady("The graph index is being built from the store; try again in a moment.")
-        return self.index.view(request)
+        through = self.index.changed_through  # read first: a change made meanwhile is announced again, not lost
+        return {**self.index.view(request), "through": through}
 
     def resource(
         self, iri: str, *, incoming: Collection[str] | None = None, incoming_limit: int = INCOMING_LIMIT

@@ -86,6 +86,9 @@ class GraphIndex:
         self.store = store
         self.db = ViewDatabase(path, SCHEMA)
         self.ready = False
+        # The journal entry of the last change to what is drawn: live viewers fetch their view again when it
+        # moves (in memory: a viewer reconnecting to a restarted server is told to fetch again).
+        self.changed_through = 0
 
     # --- Projection ----------------------------------------------------------------------------------
 
@@ -103,6 +106,7 @@ class GraphIndex:
             iris = [row[0] for row in connection.execute("SELECT iri FROM graph_nodes")]
             _derive(connection, iris)
             _set_through(connection, through)
+        self.changed_through = through
         logger.info("graph index built: %d nodes", len(iris))
 
     def update(self, quads: list[Quad], through: int) -> None:
@@ -111,12 +115,15 @@ class GraphIndex:
             if touched:
                 _derive(connection, sorted(touched | _borrowers(connection, touched)))
             _set_through(connection, through)
+        if touched:
+            self.changed_through = through
 
     def clear(self, through: int) -> None:
         with self.db.writing() as connection:
             for table in ("graph_types", "graph_literals", "graph_links", "graph_nodes"):
                 connection.execute(f"DELETE FROM {table}")
             _set_through(connection, through)
+        self.changed_through = through
 
     def close(self) -> None:
         self.db.close()
