@@ -27,7 +27,7 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     root: Path = tmp_path_factory.mktemp("export")
     store = OxigraphStore("http://amor-segb/events", root / "oxigraph")
     with LiveServer(create_app(make_settings(store="oxigraph", data_dir=root), store=store)) as live:
-        lines = "".join(f"<https://e.org/s{i}> <https://e.org/p> \"v{i}\" .\n" for i in range(TRIPLES))
+        lines = "".join(f'<https://e.org/s{i}> <https://e.org/p> "v{i}" .\n' for i in range(TRIPLES))
         answer = httpx.post(
             f"{live.url}/ttl", content=lines, headers={"Content-Type": "application/n-triples"}, timeout=120
         )
