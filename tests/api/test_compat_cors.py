@@ -145,7 +145,12 @@ def test_server_errors_carry_cors_when_the_store_answers_nonsense(memory_api: Li
     store = SparqlHttpStore(query_endpoint=endpoint, update_endpoint=endpoint, graph_uri="http://amor-segb/events")
     try:
         with cors_app(store) as server:
-            answer = httpx.get(f"{server.url}/graph", headers={"Origin": ORIGIN, **bearer("auditor")}, timeout=30)
+            answer = httpx.get(
+                f"{server.url}/resource",
+                params={"iri": "https://example.org/a"},
+                headers={"Origin": ORIGIN, **bearer("auditor")},
+                timeout=30,
+            )
     finally:
         store.close()
     assert (answer.status_code, answer.json()["error"]) == (502, "store_error")

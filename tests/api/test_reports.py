@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 from collections.abc import Iterator
 
 import httpx
@@ -15,6 +16,7 @@ import pytest
 from semantic_log_generator import SEGBPublisher
 
 from segb_server.backend.api.app import create_app
+from segb_server.backend.config import PACKAGE_ROOT
 from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.conftest import make_settings, virtuoso_store
 from tests.support.live_server import LiveServer
@@ -34,6 +36,14 @@ class Published:
 
     def get(self, store: str, path: str, **params: object) -> httpx.Response:
         return httpx.get(f"{self.servers[store].url}{path}", params=params, timeout=60)  # type: ignore[arg-type]
+
+    def evidence(self, store: str, report: str) -> str:
+        """The report's rows beside its query's own answer from the store, for a failure message."""
+        text = (PACKAGE_ROOT / "sparql" / "reports" / f"{report}.rq").read_text()
+        evaluated = httpx.post(
+            f"{self.servers[store].url}/sparql", data={"query": text}, headers={"Accept": "text/csv"}, timeout=60
+        ).text
+        return json.dumps({"rows": self.rows(store, report), "evaluated": evaluated}, indent=1)
 
     def rows(self, store: str, report: str, **params: object) -> list[dict[str, object]]:
         response = self.get(store, f"/reports/{report}", **params)
@@ -136,7 +146,7 @@ def test_emotion_timeline_keeps_readings_without_shared_event_and_tells_targets_
         ("2026-03-10T09:00:06Z", "human_maria", "human", "happiness", pytest.approx(0.9)),
         ("2026-03-10T09:00:12Z", "human_juan", "human", "anger", pytest.approx(0.8)),  # no shared event
         ("2026-03-10T09:00:15Z", "robot_ari", "robot", "happiness", pytest.approx(0.6)),  # expressed by ARI
-    ]
+    ], published.evidence(store, "emotion-timeline")
     assert [row["confidence"] for row in rows] == [pytest.approx(0.95), None, None]
     assert [short(row["robot"]) for row in rows] == ["robot_ari", "robot_tiago", "robot_ari"]
     assert rows[0]["activity"] == published.iri("emotion_maria_1")
@@ -145,7 +155,9 @@ def test_emotion_timeline_keeps_readings_without_shared_event_and_tells_targets_
 @pytest.mark.parametrize("store", STORES)
 def test_extreme_emotions_apply_the_threshold(published: Published, store: str) -> None:
     default = published.rows(store, "extreme-emotions")
-    assert [short(row["target"]) for row in default] == ["human_maria", "human_juan"]  # 0.9, 0.8 ≥ 0.75
+    assert [short(row["target"]) for row in default] == ["human_maria", "human_juan"], published.evidence(
+        store, "extreme-emotions"
+    )  # 0.9, 0.8 ≥ 0.75
     strict = published.rows(store, "extreme-emotions", threshold="0.85")
     assert [row["intensity"] for row in strict] == [pytest.approx(0.9)]
 
@@ -283,12 +295,14 @@ def test_a_filter_value_cannot_inject_sparql(published: Published) -> None:
 
 
 def test_reports_follow_every_write_even_when_cached(memory_api: LiveServer) -> None:
-    """The embedded store caches report pages; a publish or a delete must show up at once."""
+    """Report pages are served from rows kept current (and cached): a publish or a delete shows once the views
+    have caught up, never a stale page after that."""
     scenario = lobby()
     steps = iter(scenario.steps)
     publisher = SEGBPublisher(base_url=memory_api.url)
 
     def conversations() -> list[str]:
+        settle(memory_api.url)
         return [row["text"] for row in httpx.get(f"{memory_api.url}/reports/conversations").json()["rows"]]
 
     for robot, step in steps:
