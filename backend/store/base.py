@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
 from pyoxigraph import BlankNode, Literal, NamedNode, Quad, QueryBoolean, QuerySolutions, Triple
+
+from segb_server.backend.store.sparql_text import code_only
 
 Term = NamedNode | BlankNode | Literal
 Bindings = Mapping[str, Term | None]
@@ -89,17 +92,31 @@ class Store(Protocol):
 
 
 def select(store: Store, sparql: str, bindings: Bindings | None = None) -> SelectResult:
-    """Run a SELECT and materialise its rows as dicts of terms (unbound columns are left out of a row)."""
+    """Run a SELECT and materialise its rows as dicts of terms (unbound columns are left out of a row).
+
+    A SELECT DISTINCT answer is made distinct here too: Virtuoso 7 answers some DISTINCT queries (OPTIONALs
+    and BINDs over EXISTS) with repeated solutions, depending on the plan its statistics choose."""
     solutions = store.query(sparql, bindings)
     if not isinstance(solutions, QuerySolutions):
         raise TypeError("select() needs a SELECT query")
     columns = [variable.value for variable in solutions.variables]
     rows = []
+    seen: set[tuple[object, ...]] = set()
+    distinct = _DISTINCT.match(code_only(sparql)) is not None
     for solution in solutions:
         row = {}
         for name in columns:
             value = solution[name]
             if value is not None:
                 row[name] = value
+        if distinct:
+            identity = tuple(row.get(name) for name in columns)
+            if identity in seen:
+                continue
+            seen.add(identity)
         rows.append(row)
     return SelectResult(columns=columns, rows=rows)
+
+
+# The query's own SELECT (after its prologue) is DISTINCT: a subquery's DISTINCT says nothing of the answer.
+_DISTINCT = re.compile(r"\s*(?:(?:PREFIX\s+[^\s:]*:\s*<[^>]*>|BASE\s+<[^>]*>)\s*)*SELECT\s+DISTINCT\b", re.IGNORECASE)
