@@ -101,7 +101,7 @@ class ReportProjection:
     def update(self, quads: list[Quad], through: int) -> None:
         plan = self.layout.plan
         if quads:
-            units = units_touched(plan, self.unit, quads, self.store)
+            units = units_touched(plan, self.unit, quads, self.store, ignored=_facet_patterns(plan))
             if units:
                 rows = self._evaluate(sorted(units))
                 self.rows.replace(self.layout, sorted(units), rows, through)
@@ -131,7 +131,6 @@ class ReportProjection:
     def _update_facet(self, facet: FacetFilter, anchors: list[str] | None) -> None:
         """The facet's values for `anchors` replaced (None: for every anchor, when the report is built)."""
         variable = PARAMETER_VARIABLE_PREFIX + facet.parameter
-        branches = " UNION ".join("{ " + " ".join(p.sparql() for p in body) + " }" for body in facet.bodies)
         selected = f"SELECT DISTINCT {facet.anchor} ?{variable}"
         chunks = (
             [None]
@@ -139,24 +138,33 @@ class ReportProjection:
             else [anchors[i : i + VALUES_PER_QUERY] for i in range(0, len(anchors), VALUES_PER_QUERY)]
         )
         pairs: list[tuple[str, str]] = []
+        # One query per EXISTS body, the anchors' VALUES beside its patterns: inside a UNION branch they would
+        # not bind the branch, which would then be evaluated for every anchor in the store.
         for chunk in chunks:
             values = "" if chunk is None else f"VALUES {facet.anchor} {{ {' '.join(chunk)} }} "
-            for row in select(self.store, f"{selected} WHERE {{ {values}{branches} }}").rows:
-                anchor, value = row.get(facet.anchor[1:]), row.get(variable)
-                if anchor is not None and value is not None:
-                    pairs.append((term_text(anchor), term_text(value)))
+            for body in facet.bodies:
+                query = f"{selected} WHERE {{ {values}{' '.join(p.sparql() for p in body)} }}"
+                for row in select(self.store, query).rows:
+                    anchor, value = row.get(facet.anchor[1:]), row.get(variable)
+                    if anchor is not None and value is not None:
+                        pairs.append((term_text(anchor), term_text(value)))
         replaced = sorted({anchor for anchor, _ in pairs}) if anchors is None else anchors
         self.rows.replace_facets(self.layout, facet.parameter, replaced, pairs)
 
 
-def units_touched(plan: ReportPlan, unit: str, quads: list[Quad], store: Store) -> set[str]:
-    """The units (values of `?unit`, as N-Triples text) whose rows the new `quads` may change."""
+def units_touched(
+    plan: ReportPlan, unit: str, quads: list[Quad], store: Store, ignored: frozenset[Pattern] = frozenset()
+) -> set[str]:
+    """The units (values of `?unit`, as N-Triples text) whose rows the new `quads` may change; triples matching
+    only `ignored` patterns change none."""
     target = f"?{unit}"
     units: set[str] = set()
     by_predicate: dict[str, list[Quad]] = {}
     for quad in quads:
         by_predicate.setdefault(quad.predicate.value, []).append(quad)
     for pattern in plan.patterns:
+        if pattern in ignored:
+            continue
         matches = [q for p in pattern.predicates for q in by_predicate.get(p, []) if _fits(pattern, q)]
         if not matches:
             continue
@@ -166,12 +174,16 @@ def units_touched(plan: ReportPlan, unit: str, quads: list[Quad], store: Store) 
             continue
         names = sorted(pattern.variables())
         rows = list({tuple(term_text(binding[name]) for name in names): binding for binding in bindings}.values())
-        bodies = " UNION ".join("{ " + " ".join(path) + " }" for path in paths(plan, pattern, target))
-        for start in range(0, len(rows), VALUES_PER_QUERY):
-            chunk = rows[start : start + VALUES_PER_QUERY]
-            values = " ".join("(" + " ".join(term_text(binding[name]) for name in names) + ")" for binding in chunk)
-            query = f"SELECT DISTINCT {target} WHERE {{ VALUES ({' '.join(names)}) {{ {values} }} {bodies} }}"
-            units.update(term_text(row[unit]) for row in select(store, query).rows if unit in row)
+        # One query per chain, not a UNION of them: the VALUES must bind the chain's own group (a BIND in a
+        # UNION branch would not see them, and the branch would reach every unit of the store).
+        for path in paths(plan, pattern, target):
+            for start in range(0, len(rows), VALUES_PER_QUERY):
+                chunk = rows[start : start + VALUES_PER_QUERY]
+                values = " ".join("(" + " ".join(term_text(binding[n]) for n in names) + ")" for binding in chunk)
+                query = (
+                    f"SELECT DISTINCT {target} WHERE {{ VALUES ({' '.join(names)}) {{ {values} }} {' '.join(path)} }}"
+                )
+                units.update(term_text(row[unit]) for row in select(store, query).rows if unit in row)
     return units
 
 
@@ -196,23 +208,36 @@ def paths(plan: ReportPlan, start: Pattern, target: str) -> list[list[str]]:
     `start` is matched (one chain per UNION branch it may have come through) and of BIND aliases. Unsupported
     when there is none."""
     base = [pattern for pattern in plan.guaranteed_patterns(start) if pattern is not start]
-    found = _shortest(start, base, plan.aliases, target)
-    if found is not None:
-        return [found]
+    # From the subject first: a triple's object is often a hub (a robot, a model, a human), and a chain from it
+    # reaches every unit of that hub, where a chain from the subject reaches the units of this one triple.
+    for sources in _sources(start):
+        found = _shortest(sources, base, plan.aliases, target)
+        if found is not None:
+            return [found]
     chains = [
         chain
         for branch in plan.branch_choices(start)
-        if (chain := _shortest(start, base + branch, plan.aliases, target))
+        for sources in _sources(start)[-1:]
+        if (chain := _shortest(sources, base + branch, plan.aliases, target))
     ]
     if not chains:
         raise Unsupported(f"no path from {start.sparql()} to {target}")
     return chains
 
 
-def _shortest(start: Pattern, usable: list[Pattern], aliases: list[tuple[str, str]], target: str) -> list[str] | None:
-    """Breadth first over variables: a pattern joins its variables; an alias binds one from the other."""
-    frontier: deque[tuple[str, list[str]]] = deque((variable, []) for variable in start.variables())
-    seen = set(start.variables())
+def _sources(start: Pattern) -> list[set[str]]:
+    """The variables a chain may start from, tried in turn: the subject alone, then any of them."""
+    subject_only = [{start.subject}] if start.subject.startswith("?") and len(start.variables()) > 1 else []
+    return [*subject_only, start.variables()]
+
+
+def _shortest(
+    sources: set[str], usable: list[Pattern], aliases: list[tuple[str, str]], target: str
+) -> list[str] | None:
+    """Breadth first over variables from `sources`: a pattern joins its variables; an alias binds one from the
+    other."""
+    frontier: deque[tuple[str, list[str]]] = deque((variable, []) for variable in sorted(sources))
+    seen = set(sources)
     while frontier:
         variable, path = frontier.popleft()
         if variable == target:
@@ -226,6 +251,12 @@ def _shortest(start: Pattern, usable: list[Pattern], aliases: list[tuple[str, st
                 seen.add(other)
                 frontier.append((other, [*path, step]))
     return None
+
+
+def _facet_patterns(plan: ReportPlan) -> frozenset[Pattern]:
+    """The patterns of facet filters' EXISTS bodies: they decide which rows a filter keeps (the facets table),
+    never what a row holds."""
+    return frozenset(pattern for facet in plan.facet_filters for body in facet.bodies for pattern in body)
 
 
 def _facet_plan(plan: ReportPlan, facet: FacetFilter) -> ReportPlan:
