@@ -58,6 +58,9 @@ class Store(Protocol):
 
     kind: str
     graph_uri: str
+    # A VALUES block of several rows wraps the WHERE group instead of opening it (`bind_rows`): Virtuoso 7 skips
+    # FILTERs of a group that opens with one. Elsewhere it opens the group, so the store joins from it.
+    wraps_values: bool
 
     def ping(self) -> None:
         """Raise StoreUnavailable unless the store answers a trivial query."""

@@ -31,6 +31,8 @@ class OxigraphStore:
     """Keeping events in the default graph lets parsed quads be checked and inserted without rewrapping,
     which is most of the per-triple cost of a re-publish. Other named graphs stay free for server data."""
 
+    wraps_values = False
+
     def __init__(self, graph_uri: str, path: Path | None = None) -> None:
         self.kind = "oxigraph" if path is not None else "memory"
         self.graph_uri = graph_uri

@@ -39,6 +39,7 @@ class SparqlHttpStore:
     """Generic adapter. Subclasses adjust authentication, dataset selection and the write path."""
 
     kind = "sparql"
+    wraps_values = False
 
     def __init__(
         self,

@@ -12,6 +12,7 @@ class VirtuosoStore(SparqlHttpStore):
     it reports them with."""
 
     kind = "virtuoso"
+    wraps_values = True
 
     def __init__(
         self,

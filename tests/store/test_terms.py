@@ -6,6 +6,7 @@ from __future__ import annotations
 import pytest
 from pyoxigraph import Literal, NamedNode, Quad, Store
 
+from segb_server.backend.store.base import Term
 from segb_server.backend.store.terms import bind_rows, bind_values
 
 EX = "http://example.org/"
@@ -30,9 +31,11 @@ def test_values_open_the_outer_group_when_a_subquery_comes_first_in_the_text(sto
     assert names(store, bound) == [EX + "a"]
 
 
-def test_rows_of_values_join_the_whole_group_filters_included(store: Store) -> None:
+@pytest.mark.parametrize("wrap", [False, True])  # opening the group (most stores), around it (Virtuoso)
+def test_rows_of_values_join_the_whole_group_filters_included(store: Store, wrap: bool) -> None:
     query = f'SELECT ?s WHERE {{ ?s <{EX}p> ?o OPTIONAL {{ ?s <{EX}q> ?q }} FILTER (?o != "2") }}'
-    bound = bind_rows(query, ["s"], [[NamedNode(EX + "a")], [NamedNode(EX + "b")], [NamedNode(EX + "c")]])
+    rows: list[list[Term | None]] = [[NamedNode(EX + "a")], [NamedNode(EX + "b")], [NamedNode(EX + "c")]]
+    bound = bind_rows(query, ["s"], rows, wrap=wrap)
     assert names(store, bound) == [EX + "a"]  # b is filtered out, c has no triple
 
 

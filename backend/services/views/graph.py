@@ -61,7 +61,10 @@ class GraphService:
         text, bindings = query.text, query.bindings({"iri": iri})
         if incoming is not None:  # one VALUES row per (resource, predicate) instead of the resource alone
             rows: list[list[Term | None]] = [[NamedNode(iri), NamedNode(p)] for p in sorted(incoming)]
-            text, bindings = bind_rows(text, [PARAMETER_VARIABLE_PREFIX + "iri", "predicate"], rows), {}
+            text, bindings = (
+                bind_rows(text, [PARAMETER_VARIABLE_PREFIX + "iri", "predicate"], rows, wrap=self.store.wraps_values),
+                {},
+            )
         found = self._statements_of(select(self.store, paged(text, incoming_limit + 1, None), bindings).rows)
         truncated = len(found) > incoming_limit
         incoming_statements = sorted(found[:incoming_limit], key=lambda s: (s["predicate"], str(s["value"])))

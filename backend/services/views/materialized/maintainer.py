@@ -121,7 +121,11 @@ class ReportProjection:
         chunks = [None] if units is None else [units[i : i + VALUES_PER_QUERY] for i in range(0, len(units), 300)]
         grouped: dict[str, list[Row]] = {unit: [] for unit in units or []}
         for chunk in chunks:
-            bound = text if chunk is None else bind_rows(text, [self.unit], [[_term(unit)] for unit in chunk])
+            bound = (
+                text
+                if chunk is None
+                else bind_rows(text, [self.unit], [[_term(unit)] for unit in chunk], wrap=self.store.wraps_values)
+            )
             for row in select(self.store, bound).rows:
                 unit = row.get(self.unit)
                 if unit is not None:
