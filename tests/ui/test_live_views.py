@@ -5,6 +5,7 @@ pausing stops the updates, resuming shows what was missed."""
 from __future__ import annotations
 
 import hashlib
+import time
 
 import httpx
 import pytest
@@ -62,7 +63,9 @@ def test_the_api_stream_names_the_changed_report_and_resumes_from_an_event_id(ui
         publish_message(ui_stack.api_url, "Streamed hello")
         lines = stream.iter_lines()
         event: dict[str, str] = {}
+        deadline = time.monotonic() + 20  # a keep-alive comment every 15 s gives the loop a turn
         while "data" not in event or '"conversations"' not in event["data"]:
+            assert time.monotonic() < deadline, "no change of the conversations report was announced"
             line = next(lines)
             if line.startswith(("id:", "event:", "data:")):
                 key, _, value = line.partition(":")

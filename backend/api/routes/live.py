@@ -46,7 +46,9 @@ async def stream(
         raise NotFound("This server keeps no live reports.")
     rows = maintainer.rows
     resume = request.headers.get("last-event-id", "")
-    last = int(resume) if resume.isdigit() else 0
+    # Where a new reader starts is read before the answer's headers go out: a change made as soon as the
+    # reader sees them is after it, and is sent.
+    last = int(resume) if resume.isdigit() else await anyio.to_thread.run_sync(rows.last_change)
 
     async def changes() -> list[bytes]:
         nonlocal last
@@ -61,12 +63,10 @@ async def stream(
         ]
 
     async def opening() -> list[bytes]:
-        nonlocal last
+        if not resume.isdigit():
+            return []
         oldest = await anyio.to_thread.run_sync(rows.oldest_change)
-        if resume.isdigit():
-            return [b"event: reset\ndata: {}\n\n"] if last < oldest - 1 else []
-        last = await anyio.to_thread.run_sync(rows.last_change)
-        return []
+        return [b"event: reset\ndata: {}\n\n"] if last < oldest - 1 else []
 
     return _event_stream(request, opening, changes)
 
