@@ -164,6 +164,7 @@ class _CandidateQuery:
         self.conditions: list[str] = []
         self.condition_arguments: list[object] = []
         self.distance = False
+        self.searched = False
         if request.robot:
             self._robot(request.robot)
         if request.since or request.until:
@@ -242,6 +243,7 @@ class _CandidateQuery:
             "UNION SELECT l.source FROM hits h JOIN graph_links l ON l.target = h.iri)"
         )
         self.conditions.append("n.iri IN hit_set")
+        self.searched = True
 
     def _focus(self, focus: str, depth: int) -> None:
         self._cte(
@@ -262,6 +264,8 @@ class _CandidateQuery:
     def ordered(self, limit: int) -> tuple[str, list[object]]:
         text, arguments = self._select("n.iri")
         order = "d.d, n.rank, n.instant, n.iri" if self.distance else "n.rank, n.instant, n.iri"
+        if self.searched:  # what was searched for first, then its neighbours: a limit must not cut the hits
+            order = "n.iri NOT IN hits, " + order
         return f"{text} ORDER BY {order} LIMIT ?", [*arguments, limit]
 
     def count(self) -> tuple[str, list[object]]:

@@ -1,0 +1,19 @@
+"""A search draws what it found before the neighbours: with a small node limit the matches are still drawn."""
+
+from __future__ import annotations
+
+import httpx
+
+from tests.support.live_server import LiveServer
+from tests.support.scenarios import lobby
+
+
+def test_a_search_draws_its_matches_before_their_neighbours(memory_api: LiveServer) -> None:
+    scenario = lobby()
+    scenario.publish_all(memory_api.url)
+    found = httpx.get(f"{memory_api.url}/graph", params={"q": "driving test", "limit": 2}).json()
+    message = str(scenario.iris["maria_1"])
+    drawn = [node["id"] for node in found["nodes"]]
+    hits = [iri for iri in drawn if iri in found["matches"]]
+    assert message in hits and drawn[: len(hits)] == hits  # the matches first, before robots and humans
+    assert found["truncated"] is True
