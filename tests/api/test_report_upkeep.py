@@ -20,16 +20,17 @@ POSTS = 40
 
 def test_the_keys_a_post_touches_do_not_grow_with_the_log(memory_api: LiveServer) -> None:
     touched: list[tuple[str, int]] = []  # (report, keys) per change event
-    stop = threading.Event()
+    client = httpx.Client(timeout=60)
 
     def listen() -> None:
-        with httpx.stream("GET", f"{memory_api.url}/reports/stream", timeout=60) as stream:
-            for line in stream.iter_lines():
-                if line.startswith("data:") and '"units"' in line:
-                    change = json.loads(line.removeprefix("data:"))
-                    touched.append((change["report"], len(change["units"])))
-                if stop.is_set():
-                    return
+        try:
+            with client.stream("GET", f"{memory_api.url}/reports/stream") as stream:
+                for line in stream.iter_lines():
+                    if line.startswith("data:") and '"units"' in line:
+                        change = json.loads(line.removeprefix("data:"))
+                        touched.append((change["report"], len(change["units"])))
+        except httpx.HTTPError:
+            return  # closed below, once every post is in
 
     listener = threading.Thread(target=listen, daemon=True)
     listener.start()
@@ -39,7 +40,8 @@ def test_the_keys_a_post_touches_do_not_grow_with_the_log(memory_api: LiveServer
         assert answer.status_code == 201, answer.text
         settle(memory_api.url)
         time.sleep(0.3)  # one poll of the stream per post: each event holds one post's keys
-    stop.set()
+    client.close()
+    listener.join(timeout=10)
     by_report: dict[str, list[int]] = {}
     for report, keys in touched:
         by_report.setdefault(report, []).append(keys)
