@@ -154,18 +154,15 @@ def live_notes(live: dict[tuple[str, int], LiveReports]) -> list[str]:
         (lines if built else [])
         + _wrong_pages(live)
         + [
-            "**Why a post's rows take seconds to show under this load.** Pages are read from the rows and stay",
-            "fast, but the rows follow the store through the reports' thread, whose work per applied step is many",
-            "small queries (for each report, the keys the new triples can change, then the report again for those",
-            "keys; see the last row of the breakdown in section 1). At 10 posts/s, while pages and graph views are",
-            "requested too, that thread falls behind by the *max reports_lag entries* above, and a post's messages",
-            "appear in `/reports/conversations` only when it has caught up to them.",
+            "**How a post reaches the pages.** Pages are read from the reports' rows, and the graph views from the",
+            "graph index; both follow the store through one views thread, whose work per applied step is a few",
+            "bound queries per report (the keys the new triples touch, found from each triple's subject, then the",
+            "report again for those keys; see the last row of the breakdown in section 1). *rows visible after 201*",
+            "and *max reports_lag entries* above say whether it kept up with the robot.",
             "",
-            "**The graph views are not served from rows.** `/graph` evaluates its query over the whole store (the",
-            "embedded store's result cache is dropped by every write, and Virtuoso has none), so under live ingest",
-            "every first view costs the query, which grows with the graph. Where one failed, the server's timeout",
-            "for one store request (`STORE_TIMEOUT_SECONDS`, 30 s) ended it and the answer was a 503 saying the",
-            "store is unavailable.",
+            "**The graph views are read from the graph index** (`backend/services/views/graph_index.py`): a first",
+            "view or a neighbourhood is a few indexed SQLite queries whatever the size of the log; a label search",
+            "or a time window scans the index's nodes.",
             "",
         ]
     )
