@@ -14,6 +14,7 @@ import httpx
 from tests.cli.test_cli import SEGB, clean_env, segb, wait_for
 from tests.support.live_server import LiveServer
 from tests.support.net import free_port
+from tests.support.settle import settle
 from tests.support.sparql import select_bindings
 
 REPORTS = ["participants", "ml-usage", "emotion-timeline", "extreme-emotions", "conversations", "robot-states"]
@@ -30,6 +31,7 @@ SELECT DISTINCT ?event WHERE {
 
 
 def rows(url: str, name: str) -> list[dict[str, Any]]:
+    settle(url)  # the reports are rows kept current from the journal: read them once they include every post
     response = httpx.get(f"{url}/reports/{name}", timeout=30)
     assert response.status_code == 200, response.text
     return response.json()["rows"]

@@ -19,6 +19,7 @@ from segb_server.examples.emotion_mirror.mission import FALLBACK_REPLY, EmotionM
 from segb_server.examples.emotion_mirror.script import Expression, Utterance, default_script
 from tests.support.live_server import LiveServer
 from tests.support.net import free_port
+from tests.support.settle import settle
 from tests.support.sparql import select_bindings
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -41,6 +42,7 @@ def drive(server: LiveServer, *extra: str) -> int:
 
 
 def report(server: LiveServer, name: str, **params: str) -> list[dict[str, Any]]:
+    settle(server.url)  # the reports are rows kept current from the journal: read them once they include every post
     response = httpx.get(f"{server.url}/reports/{name}", params=params, timeout=30)
     assert response.status_code == 200, response.text
     return response.json()["rows"]
