@@ -6,7 +6,7 @@ import httpx
 import pytest
 
 from tests.support.live_server import LiveServer
-from tests.support.scenarios import lobby
+from tests.support.scenarios import keep_busy, lobby
 
 
 def get(server: LiveServer, path: str, **params: object) -> httpx.Response:
@@ -65,11 +65,7 @@ def test_a_resource_many_things_point_at_is_read_a_page_at_a_time(api: LiveServe
     scenario = lobby()
     scenario.publish_all(api.url)
     tiago = str(scenario.iris["tiago"])
-    busy = "\n".join(
-        f"<https://example.org/busy/a{i}> <http://www.gsi.upm.es/ontologies/segb/ns#wasPerformedBy> <{tiago}> ."
-        for i in range(600)
-    )
-    assert httpx.post(f"{api.url}/ttl", json={"ttl_content": busy}, timeout=60).status_code == 201
+    keep_busy(api.url, tiago, 600)
     body = get(api, "/resource", iri=tiago).json()
     assert len(body["incoming"]) == 500 and body["incoming_truncated"] is True
     assert body["incoming"] == sorted(body["incoming"], key=lambda s: (s["predicate"], str(s["value"])))

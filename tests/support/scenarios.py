@@ -11,6 +11,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import UTC, datetime, timedelta
 
+import httpx
 from rdflib import URIRef
 from semantic_log_generator import (
     ActivityKind,
@@ -255,3 +256,12 @@ def lobby() -> Scenario:
         ("ari", maria_thanks),
     ]
     return scenario
+
+
+def keep_busy(base_url: str, robot: str, activities: int) -> None:
+    """Publish `activities` activities performed by `robot`: the object of that many links, as after a month."""
+    busy = "\n".join(
+        f"<https://example.org/busy/a{i}> <http://www.gsi.upm.es/ontologies/segb/ns#wasPerformedBy> <{robot}> ."
+        for i in range(activities)
+    )
+    assert httpx.post(f"{base_url}/ttl", json={"ttl_content": busy}, timeout=60).status_code == 201

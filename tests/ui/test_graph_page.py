@@ -10,7 +10,7 @@ import pytest
 
 from bench.workloads import ntriples_of, replicate
 from tests.conftest import ARTIFACTS, UiStack
-from tests.support.scenarios import lobby
+from tests.support.scenarios import keep_busy, lobby
 from tests.support.settle import settle
 
 pytestmark = pytest.mark.browser
@@ -50,11 +50,7 @@ def test_node_details_say_when_more_statements_point_at_the_node(ui_stack: UiSta
     scenario = lobby()
     scenario.publish_all(ui_stack.api_url)
     tiago = str(scenario.iris["tiago"])
-    busy = "\n".join(
-        f"<https://example.org/busy/a{i}> <http://www.gsi.upm.es/ontologies/segb/ns#wasPerformedBy> <{tiago}> ."
-        for i in range(600)
-    )
-    assert httpx.post(f"{ui_stack.api_url}/ttl", json={"ttl_content": busy}, timeout=60).status_code == 201
+    keep_busy(ui_stack.api_url, tiago, 600)
     open_graph(page, f"{ui_stack.ui_url}/kg-graph?" + str(httpx.QueryParams({"focus": tiago, "depth": "0"})))
     page.fill("#graph-search-input", "TIAGo")
     page.click("#graph-search button")
