@@ -100,9 +100,8 @@ class GraphIndex:
         with self.db.writing() as connection:
             for table in ("graph_types", "graph_literals", "graph_links", "graph_nodes"):
                 connection.execute(f"DELETE FROM {table}")
-            nodes = 0
             for batch in self.store.batches(20_000):
-                nodes += len(_store_facts(connection, batch))
+                _store_facts(connection, batch)
             iris = [row[0] for row in connection.execute("SELECT iri FROM graph_nodes")]
             _derive(connection, iris)
             _set_through(connection, through)
