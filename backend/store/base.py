@@ -95,13 +95,17 @@ class Store(Protocol):
 
 
 def select(store: Store, sparql: str, bindings: Bindings | None = None) -> SelectResult:
-    """Run a SELECT and materialise its rows as dicts of terms (unbound columns are left out of a row).
-
-    A SELECT DISTINCT answer is made distinct here too: Virtuoso 7 answers some DISTINCT queries (OPTIONALs
-    and BINDs over EXISTS) with repeated solutions, depending on the plan its statistics choose."""
+    """Run a SELECT and materialise its rows as dicts of terms (unbound columns are left out of a row)."""
     solutions = store.query(sparql, bindings)
     if not isinstance(solutions, QuerySolutions):
         raise TypeError("select() needs a SELECT query")
+    return rows_of(sparql, solutions)
+
+
+def rows_of(sparql: str, solutions: QuerySolutions) -> SelectResult:
+    """The rows of a store's answer to `sparql`. A SELECT DISTINCT answer is made distinct here too: Virtuoso 7
+    answers some DISTINCT queries (OPTIONALs and BINDs over EXISTS) with repeated solutions, depending on the
+    plan its statistics choose."""
     columns = [variable.value for variable in solutions.variables]
     rows = []
     seen: set[tuple[object, ...]] = set()
