@@ -3,6 +3,7 @@
     python -m bench                    # quick profile (6 to 12 minutes on 2 cores, both stores)
     python -m bench --profile full     # the issue's full sizes (1,000 interactions, reports at 1M triples)
     python -m bench --profile tiny --output /tmp/perf.md --no-virtuoso   # smoke run
+    python -m bench --profile full --only reports --report-sizes 1000000 --output /tmp/perf.md  # one section
 
 Servers run as separate processes (`segb serve --only api`, the naive baseline, Virtuoso) and are driven
 over loopback HTTP, so the figures include the HTTP stack but never share an interpreter with the client.
@@ -19,7 +20,7 @@ import sys
 import tempfile
 import time
 import traceback
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -58,6 +59,7 @@ PROFILES = {
     "full": Profile(2_000, 16, 200, 1_000, (100_000, 1_000_000), 30, 20, 6_000),
 }
 BREAKDOWN_POSTS = 300
+SECTIONS = ("small", "robots", "steady", "cumulative", "reports")
 TRIPLES_PER_INTERACTION = 151
 INTERACTIONS_PER_COPY = 100
 
@@ -77,11 +79,21 @@ def main(argv: list[str] | None = None) -> int:
         default=[],
         help="saved figures of another run whose report sizes this report lacks (say, 1M from a full run)",
     )
+    parser.add_argument(
+        "--only", choices=SECTIONS, action="append", help="measure only this section (repeatable; default: all)"
+    )
+    parser.add_argument(
+        "--report-sizes", type=int, nargs="+", help="store sizes (triples) for the reports section, instead of the "
+        "profile's"
+    )  # fmt: skip
     args = parser.parse_args(argv)
     if args.from_figures:
         figures = pickle.loads(args.from_figures.read_bytes())  # only files this command wrote
     else:
-        figures = measure(args.profile, not args.no_virtuoso)
+        profile = PROFILES[args.profile]
+        if args.report_sizes:
+            profile = replace(profile, report_sizes=tuple(args.report_sizes))
+        figures = measure(args.profile, profile, not args.no_virtuoso, frozenset(args.only or SECTIONS))
         figures.code = args.code
     for path in args.add_reports_from:
         figures.add_reports(pickle.loads(path.read_bytes()))
@@ -107,8 +119,7 @@ class Loads:
         return cls(event_deltas(profile.small_posts), robots, live_posts(profile.live_posts))
 
 
-def measure(name: str, virtuoso: bool) -> Figures:
-    profile = PROFILES[name]
+def measure(name: str, profile: Profile, virtuoso: bool, sections: frozenset[str]) -> Figures:
     started = time.perf_counter()
     figures = Figures(profile=name, machine=machine(), virtuoso=virtuoso)
     with tempfile.TemporaryDirectory(prefix="segb-bench-") as scratch:
@@ -117,7 +128,7 @@ def measure(name: str, virtuoso: bool) -> Figures:
         runs = [run_embedded, run_virtuoso] if virtuoso else [run_embedded]
         for run in runs:
             try:
-                run(profile, loads, root, figures)
+                run(profile, loads, root, figures, sections)
             except Exception as error:  # the report still holds what was measured, and says what stopped
                 traceback.print_exc()
                 figures.failures.append(f"{run.__name__} stopped: {type(error).__name__}: {error}")
@@ -127,39 +138,44 @@ def measure(name: str, virtuoso: bool) -> Figures:
     return figures
 
 
-def run_embedded(profile: Profile, loads: Loads, root: Path, figures: Figures) -> None:
+def run_embedded(profile: Profile, loads: Loads, root: Path, figures: Figures, sections: frozenset[str]) -> None:
     label = "embedded"
     deltas, robots = loads.deltas, loads.robots
-    with null_server() as server:
-        figures.client_floor = small_posts(server.url, deltas, "no-op server")
-    with segb_server("oxigraph", root / "small") as server:
-        figures.small[label] = small_posts(server.url, deltas, label)
-    with segb_server("oxigraph", root / "quiet", {"LOGGING_LEVEL": "WARNING"}) as server:
-        # What the INFO line per post (the request line) costs, by leaving it out.
-        figures.small[f"{label}, LOGGING_LEVEL=WARNING"] = small_posts(server.url, deltas, f"{label}, quiet")
-    one_report = {"SPARQL_DIR": str(one_report_catalog(root))}
-    with segb_server("oxigraph", root / "small-one", one_report) as server:
-        # The same server keeping one report current instead of six: what the reports' upkeep costs the posts.
-        figures.small[ONE_REPORT] = small_posts(server.url, deltas, ONE_REPORT)
-    # A few hundred posts are enough for in-process medians, and each costs the reports' upkeep too.
-    figures.breakdown = breakdown(deltas[:BREAKDOWN_POSTS], root / "breakdown")
-    with segb_server("oxigraph", root / "robots") as server:
-        count = lambda: stored_triples(server.url)  # noqa: E731
-        figures.robots[label] = many_robots(server.url, robots, label, count, readiness=True)
-    with segb_server("oxigraph", root / "robots-one", one_report) as server:
-        count = lambda: stored_triples(server.url)  # noqa: E731
-        figures.robots[ONE_REPORT] = many_robots(server.url, robots, ONE_REPORT, count, readiness=True)
-    with null_server() as server:
-        figures.robots_floor = many_robots(server.url, robots, "no-op server", lambda: 0)
-    with segb_server("oxigraph", root / "steady", {"INGEST_ACK": "journal"}) as server:
-        figures.steady[label] = steady_lag(server.url, deltas, LIVE_RATE, profile.steady_seconds)
-    with segb_server("oxigraph", root / "cumulative") as server:
-        with ReadinessProbe(server.url, 0.02) as probe:
-            run = cumulative(server.url, cumulative_posts(profile.interactions), label, profile.interactions)
-        # Exported only once nothing else is in flight: see stored_triples.
-        run.journal = journal_size(root / "cumulative", server.url, run.payload_bytes)
-        figures.cumulative[label] = run
-    figures.health_under_load = probe.latency()
+    if "small" in sections:
+        with null_server() as server:
+            figures.client_floor = small_posts(server.url, deltas, "no-op server")
+        with segb_server("oxigraph", root / "small") as server:
+            figures.small[label] = small_posts(server.url, deltas, label)
+        with segb_server("oxigraph", root / "quiet", {"LOGGING_LEVEL": "WARNING"}) as server:
+            # What the INFO line per post (the request line) costs, by leaving it out.
+            figures.small[f"{label}, LOGGING_LEVEL=WARNING"] = small_posts(server.url, deltas, f"{label}, quiet")
+        with segb_server("oxigraph", root / "small-one", one_report(root)) as server:
+            # The same server keeping one report current instead of six: what the reports' upkeep costs the posts.
+            figures.small[ONE_REPORT] = small_posts(server.url, deltas, ONE_REPORT)
+        # A few hundred posts are enough for in-process medians, and each costs the reports' upkeep too.
+        figures.breakdown = breakdown(deltas[:BREAKDOWN_POSTS], root / "breakdown")
+    if "robots" in sections:
+        with segb_server("oxigraph", root / "robots") as server:
+            count = lambda: stored_triples(server.url)  # noqa: E731
+            figures.robots[label] = many_robots(server.url, robots, label, count, readiness=True)
+        with segb_server("oxigraph", root / "robots-one", one_report(root)) as server:
+            count = lambda: stored_triples(server.url)  # noqa: E731
+            figures.robots[ONE_REPORT] = many_robots(server.url, robots, ONE_REPORT, count, readiness=True)
+        with null_server() as server:
+            figures.robots_floor = many_robots(server.url, robots, "no-op server", lambda: 0)
+    if "steady" in sections:
+        with segb_server("oxigraph", root / "steady", {"INGEST_ACK": "journal"}) as server:
+            figures.steady[label] = steady_lag(server.url, deltas, LIVE_RATE, profile.steady_seconds)
+    if "cumulative" in sections:
+        with segb_server("oxigraph", root / "cumulative") as server:
+            with ReadinessProbe(server.url, 0.02) as probe:
+                run = cumulative(server.url, cumulative_posts(profile.interactions), label, profile.interactions)
+            # Exported only once nothing else is in flight: see stored_triples.
+            run.journal = journal_size(root / "cumulative", server.url, run.payload_bytes)
+            figures.cumulative[label] = run
+        figures.health_under_load = probe.latency()
+    if "reports" not in sections:
+        return
     for size in profile.report_sizes:
         data_dir = root / f"reports-{size}"
         files = write_dataset(root, size)
@@ -183,15 +199,16 @@ def code_version() -> str:
     return f"commit {commit}" + (" with uncommitted changes" if changed else "")
 
 
-def one_report_catalog(root: Path) -> Path:
-    """A copy of the server's queries keeping only the participants report (for SPARQL_DIR)."""
+def one_report(root: Path) -> dict[str, str]:
+    """Settings for a server keeping only the participants report current (a copy of the queries without the
+    other reports)."""
     folder = root / "sparql-one-report"
     if not folder.exists():
         shutil.copytree(ROOT / "sparql", folder)
         for query in (folder / "reports").glob("*.rq"):
             if query.name != "participants.rq":
                 query.unlink()
-    return folder
+    return {"SPARQL_DIR": str(folder)}
 
 
 def run_cumulative(url: str, data_dir: Path, interactions: int, label: str) -> Cumulative:
@@ -200,7 +217,7 @@ def run_cumulative(url: str, data_dir: Path, interactions: int, label: str) -> C
     return run
 
 
-def run_virtuoso(profile: Profile, loads: Loads, root: Path, figures: Figures) -> None:
+def run_virtuoso(profile: Profile, loads: Loads, root: Path, figures: Figures, sections: frozenset[str]) -> None:
     label = "virtuoso"
     (root / "virtuoso").mkdir()
     virtuoso = VirtuosoProcess(root / "virtuoso")
@@ -218,26 +235,38 @@ def run_virtuoso(profile: Profile, loads: Loads, root: Path, figures: Figures) -
             }
 
         # Each server has a data directory of its own: the journal there is the source of its graph.
-        figures.virtuoso_floor = measure_floor(virtuoso, GRAPH + "/floor", event_deltas(min(200, len(deltas)), "floor"))
-        with segb_server("virtuoso", root / "v-small", env(GRAPH + "/small")) as server:
-            figures.small[VIRTUOSO_JOURNAL] = small_posts(server.url, deltas, VIRTUOSO_JOURNAL)
-        with segb_server("virtuoso", root / "v-small-store", env(GRAPH + "/small-store", INGEST_ACK="store")) as server:
-            figures.small[VIRTUOSO_STORE] = small_posts(server.url, deltas, VIRTUOSO_STORE)
-        with baseline_server(virtuoso.endpoint, virtuoso.user, virtuoso.password, GRAPH + "/baseline") as naive:
-            figures.small[BASELINE] = small_posts(naive.url, deltas, BASELINE)
-        with segb_server("virtuoso", root / "v-robots", env(GRAPH + "/robots")) as server:
-            count = lambda: stored_triples(server.url)  # noqa: E731
-            figures.robots[label] = many_robots(server.url, robots, label, count, readiness=True)
-        naive_graph = GRAPH + "/baseline16"
-        with baseline_server(virtuoso.endpoint, virtuoso.user, virtuoso.password, naive_graph) as naive:
-            # The baseline has no export route: its graph is counted in Virtuoso itself.
-            figures.robots[BASELINE] = many_robots(
-                naive.url, robots, BASELINE, lambda: count_graph(virtuoso, naive_graph)
+        if "small" in sections:
+            figures.virtuoso_floor = measure_floor(
+                virtuoso, GRAPH + "/floor", event_deltas(min(200, len(deltas)), "floor")
             )
-        with segb_server("virtuoso", root / "v-steady", env(GRAPH + "/steady", INGEST_ACK="journal")) as server:
-            figures.steady[label] = steady_lag(server.url, deltas, LIVE_RATE, profile.steady_seconds)
-        with segb_server("virtuoso", root / "v-cumulative", env(GRAPH + "/cumulative")) as server:
-            figures.cumulative[label] = run_cumulative(server.url, root / "v-cumulative", profile.interactions, label)
+            with segb_server("virtuoso", root / "v-small", env(GRAPH + "/small")) as server:
+                figures.small[VIRTUOSO_JOURNAL] = small_posts(server.url, deltas, VIRTUOSO_JOURNAL)
+            with segb_server(
+                "virtuoso", root / "v-small-store", env(GRAPH + "/small-store", INGEST_ACK="store")
+            ) as server:
+                figures.small[VIRTUOSO_STORE] = small_posts(server.url, deltas, VIRTUOSO_STORE)
+            with baseline_server(virtuoso.endpoint, virtuoso.user, virtuoso.password, GRAPH + "/baseline") as naive:
+                figures.small[BASELINE] = small_posts(naive.url, deltas, BASELINE)
+        if "robots" in sections:
+            with segb_server("virtuoso", root / "v-robots", env(GRAPH + "/robots")) as server:
+                count = lambda: stored_triples(server.url)  # noqa: E731
+                figures.robots[label] = many_robots(server.url, robots, label, count, readiness=True)
+            naive_graph = GRAPH + "/baseline16"
+            with baseline_server(virtuoso.endpoint, virtuoso.user, virtuoso.password, naive_graph) as naive:
+                # The baseline has no export route: its graph is counted in Virtuoso itself.
+                figures.robots[BASELINE] = many_robots(
+                    naive.url, robots, BASELINE, lambda: count_graph(virtuoso, naive_graph)
+                )
+        if "steady" in sections:
+            with segb_server("virtuoso", root / "v-steady", env(GRAPH + "/steady", INGEST_ACK="journal")) as server:
+                figures.steady[label] = steady_lag(server.url, deltas, LIVE_RATE, profile.steady_seconds)
+        if "cumulative" in sections:
+            with segb_server("virtuoso", root / "v-cumulative", env(GRAPH + "/cumulative")) as server:
+                figures.cumulative[label] = run_cumulative(
+                    server.url, root / "v-cumulative", profile.interactions, label
+                )
+        if "reports" not in sections:
+            return
         for size in profile.report_sizes:
             data_dir = root / f"v-reports-{size}"
             settings = env(f"{GRAPH}/reports{size}")

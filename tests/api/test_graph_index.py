@@ -82,6 +82,9 @@ def test_the_graph_kept_current_equals_a_fresh_index_after_every_step(server: tu
         settle(url)
         for request in REQUESTS:
             assert served(url, request) == fresh(store, request), (step, request)
+        # The first view's total is a kept count: it must still be every node there is to draw.
+        everything, first = served(url, REQUESTS[0]), served(url, REQUESTS[-1])
+        assert first["total_nodes"] == len(everything["nodes"]) == everything["total_nodes"], step  # type: ignore[arg-type]
     assert served(url, REQUESTS[0])["nodes"], "the history left something to draw"
 
 

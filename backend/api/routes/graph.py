@@ -67,8 +67,9 @@ async def graph(
         depth=depth,
         q=q.strip() if q and q.strip() else None,
     )
-    # A JSONResponse skips FastAPI's per-value encoding pass, which costs more than the query on big graphs.
-    return JSONResponse(await run_in_threadpool(services.graph.graph, request))
+    # A JSONResponse skips FastAPI's per-value encoding pass, which costs more than the query on big graphs; made
+    # in the worker thread, so encoding a view of a megabyte does not hold the event loop either.
+    return await run_in_threadpool(lambda: JSONResponse(services.graph.graph(request)))
 
 
 @router.get("/resource", summary="Every triple about one resource, both directions, with labels")

@@ -28,7 +28,7 @@ from segb_server.backend.vocabulary import KINDS, PREFIXES, Kind, compact, kind_
 
 logger = logging.getLogger("segb.graph")
 
-INDEX_VERSION = "1"  # bump when the stored rows change meaning: the index is then built again
+INDEX_VERSION = "2"  # bump when the stored rows change meaning: the index is then built again
 RDF_TYPE = PREFIXES["rdf"] + "type"
 # Display name predicates, best first.
 LABELS = [PREFIXES["foaf"] + "firstName", PREFIXES["schema"] + "name", PREFIXES["rdfs"] + "label"]
@@ -50,17 +50,23 @@ MAX_LABEL = 60
 UNTIMED = "~"  # sorts after every instant
 CHUNK = 400  # IRIs per IN (…) list
 
+TABLES = ("graph_state", "graph_types", "graph_literals", "graph_links", "graph_nodes")
 SCHEMA = [
-    "CREATE TABLE IF NOT EXISTS graph_state (id INTEGER PRIMARY KEY CHECK (id = 1), version TEXT, through INTEGER)",
+    # nodes: how many rows graph_nodes holds (nodes are only ever added, until a clearing), for the first view's
+    # total without counting them
+    "CREATE TABLE IF NOT EXISTS graph_state (id INTEGER PRIMARY KEY CHECK (id = 1), version TEXT, through INTEGER, "
+    "nodes INTEGER NOT NULL DEFAULT 0)",
     "CREATE TABLE IF NOT EXISTS graph_types (iri TEXT, type TEXT, PRIMARY KEY (iri, type)) WITHOUT ROWID",
     "CREATE TABLE IF NOT EXISTS graph_literals (iri TEXT, predicate TEXT, value TEXT, PRIMARY KEY (iri, predicate))"
     " WITHOUT ROWID",
     "CREATE TABLE IF NOT EXISTS graph_links (source TEXT, predicate TEXT, target TEXT, "
     "PRIMARY KEY (source, predicate, target)) WITHOUT ROWID",
     "CREATE INDEX IF NOT EXISTS graph_links_by_target ON graph_links (target, predicate, source)",
-    # kind, time, label: derived from the facts; instant: the time as a fixed-width UTC text that sorts as time
+    # kind, time, label, types (a JSON list of CURIEs): derived from the facts; instant: the time as a fixed-width
+    # UTC text that sorts as time
     "CREATE TABLE IF NOT EXISTS graph_nodes (iri TEXT PRIMARY KEY, kind TEXT NOT NULL, rank INTEGER NOT NULL, "
-    "time TEXT, instant TEXT NOT NULL, label TEXT NOT NULL, search TEXT NOT NULL) WITHOUT ROWID",
+    "time TEXT, instant TEXT NOT NULL, label TEXT NOT NULL, search TEXT NOT NULL, types TEXT NOT NULL) "
+    "WITHOUT ROWID",
     "CREATE INDEX IF NOT EXISTS graph_nodes_order ON graph_nodes (rank, instant, iri)",
     "CREATE INDEX IF NOT EXISTS graph_nodes_instant ON graph_nodes (instant)",
 ]
@@ -98,13 +104,16 @@ class GraphIndex:
 
     def build(self, through: int) -> None:
         with self.db.writing() as connection:
-            for table in ("graph_types", "graph_literals", "graph_links", "graph_nodes"):
-                connection.execute(f"DELETE FROM {table}")
+            # Made again, not emptied: an index of an earlier version may have other columns.
+            for table in TABLES:
+                connection.execute(f"DROP TABLE IF EXISTS {table}")
+            for statement in SCHEMA:
+                connection.execute(statement)
+            _set_through(connection, through)
             for batch in self.store.batches(20_000):
                 _store_facts(connection, batch)
             iris = [row[0] for row in connection.execute("SELECT iri FROM graph_nodes")]
             _derive(connection, iris)
-            _set_through(connection, through)
         self.changed_through = through
         logger.info("graph index built: %d nodes", len(iris))
 
@@ -119,7 +128,7 @@ class GraphIndex:
 
     def clear(self, through: int) -> None:
         with self.db.writing() as connection:
-            for table in ("graph_types", "graph_literals", "graph_links", "graph_nodes"):
+            for table in TABLES:
                 connection.execute(f"DELETE FROM {table}")
             _set_through(connection, through)
         self.changed_through = through
@@ -138,18 +147,18 @@ class GraphIndex:
             and not connection.execute("SELECT 1 FROM graph_nodes WHERE iri = ?", (request.focus,)).fetchone()
         ):
             return {"nodes": [], "edges": [], "truncated": False, "total_nodes": 0, "matches": []}
-        kept = [row[0] for row in connection.execute(*query.ordered(request.limit + 1))]
-        truncated = len(kept) > request.limit
-        kept = kept[: request.limit]
-        total = len(kept) if not truncated else connection.execute(*query.count()).fetchone()[0]
-        nodes = _nodes(connection, kept)
+        found = connection.execute(*query.ordered(request.limit + 1)).fetchall()
+        truncated = len(found) > request.limit
+        nodes = [_node(*row) for row in found[: request.limit]]
+        kept = [str(node["id"]) for node in nodes]
+        total = len(kept) if not truncated else _total(connection, query)
         needle = request.q.casefold() if request.q else None
         return {
-            "nodes": [nodes[iri] for iri in kept],
+            "nodes": nodes,
             "edges": _edges(connection, kept),
             "truncated": truncated,
             "total_nodes": total,
-            "matches": [iri for iri in kept if needle and _matches(nodes[iri], needle)],
+            "matches": [str(node["id"]) for node in nodes if needle and _matches(node, needle)],
         }
 
 
@@ -260,8 +269,13 @@ class _CandidateQuery:
         where = f" WHERE {' AND '.join(self.conditions)}" if self.conditions else ""
         return f"{head}SELECT {columns} FROM graph_nodes n{join}{where}", [*self.arguments, *self.condition_arguments]
 
+    @property
+    def unfiltered(self) -> bool:
+        return not self.ctes and not self.conditions
+
     def ordered(self, limit: int) -> tuple[str, list[object]]:
-        text, arguments = self._select("n.iri")
+        """The nodes drawn, in drawing order, each as the columns `_node` takes."""
+        text, arguments = self._select("n.iri, n.kind, n.time, n.label, n.types")
         order = "d.d, n.rank, n.instant, n.iri" if self.distance else "n.rank, n.instant, n.iri"
         if self.searched:  # what was searched for first, then its neighbours: a limit must not cut the hits
             order = "n.iri NOT IN hits, " + order
@@ -307,10 +321,11 @@ def _store_facts(connection: Any, quads: Iterable[Quad]) -> set[str]:
     connection.executemany("INSERT OR IGNORE INTO graph_literals VALUES (?, ?, ?)", literals)  # the first name stays
     connection.executemany("INSERT OR REPLACE INTO graph_literals VALUES (?, ?, ?)", times)
     connection.executemany("INSERT OR IGNORE INTO graph_links VALUES (?, ?, ?)", links)
-    connection.executemany(
-        "INSERT OR IGNORE INTO graph_nodes VALUES (?, 'other', ?, NULL, ?, '', '')",
+    added = connection.executemany(
+        "INSERT OR IGNORE INTO graph_nodes VALUES (?, 'other', ?, NULL, ?, '', '', '[]')",
         [(iri, RANK["other"], UNTIMED) for iri in nodes],
-    )
+    ).rowcount
+    connection.execute("UPDATE graph_state SET nodes = nodes + ?", (added,))
     return nodes
 
 
@@ -370,10 +385,10 @@ def _derive(connection: Any, iris: Sequence[str]) -> None:
         for iri, time in _borrowed_times(connection, borrowing).items():
             derived[iri].time = time
         connection.executemany(
-            "INSERT OR REPLACE INTO graph_nodes VALUES (?, ?, ?, ?, ?, ?, ?)",
+            "INSERT OR REPLACE INTO graph_nodes VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
             [
                 (iri, d.kind, RANK[d.kind], d.time, instant_of(d.time) if d.time else UNTIMED, d.label,
-                 f"{d.label.casefold()}\n{iri.casefold()}")
+                 f"{d.label.casefold()}\n{iri.casefold()}", json.dumps(sorted(compact(t) for t in types.get(iri, ()))))
                 for iri, d in derived.items()
             ],
         )  # fmt: skip
@@ -430,22 +445,18 @@ def display_label(iri: str, kind: Kind, literals: dict[str, str], category: str 
     return local_name(iri)
 
 
-def _nodes(connection: Any, iris: list[str]) -> dict[str, dict[str, object]]:
-    listed = json.dumps(iris)
-    types: dict[str, list[str]] = defaultdict(list)
-    for iri, type_ in connection.execute(
-        "SELECT iri, type FROM graph_types WHERE iri IN (SELECT value FROM json_each(?))", (listed,)
-    ):
-        types[iri].append(compact(type_))
-    nodes: dict[str, dict[str, object]] = {}
-    for iri, kind, time, label in connection.execute(
-        "SELECT iri, kind, time, label FROM graph_nodes WHERE iri IN (SELECT value FROM json_each(?))", (listed,)
-    ):
-        node: dict[str, object] = {"id": iri, "label": label, "kind": kind, "types": sorted(types.get(iri, []))}
-        if time:
-            node["time"] = time
-        nodes[iri] = node
-    return nodes
+def _node(iri: str, kind: str, time: str | None, label: str, types: str) -> dict[str, object]:
+    node: dict[str, object] = {"id": iri, "label": label, "kind": kind, "types": json.loads(types)}
+    if time:
+        node["time"] = time
+    return node
+
+
+def _total(connection: Any, query: _CandidateQuery) -> int:
+    """How many nodes the request allows: kept as a count for the unfiltered view, counted otherwise."""
+    if query.unfiltered:
+        return int(connection.execute("SELECT nodes FROM graph_state").fetchone()[0])
+    return int(connection.execute(*query.count()).fetchone()[0])
 
 
 def _edges(connection: Any, iris: list[str]) -> list[dict[str, str]]:
@@ -472,7 +483,7 @@ def _matches(node: dict[str, object], needle: str) -> bool:
 
 def _set_through(connection: Any, through: int) -> None:
     connection.execute(
-        "INSERT INTO graph_state VALUES (1, ?, ?) ON CONFLICT (id) DO UPDATE SET version = excluded.version, "
+        "INSERT INTO graph_state VALUES (1, ?, ?, 0) ON CONFLICT (id) DO UPDATE SET version = excluded.version, "
         "through = excluded.through",
         (INDEX_VERSION, through),
     )

@@ -33,7 +33,7 @@ from segb_server.backend.store.terms import bind_rows, bind_values, term_text
 
 logger = logging.getLogger("segb.reports")
 
-PLAN_VERSION = "2"  # bump when the stored layout changes: every report is then built again
+PLAN_VERSION = "3"  # bump when the stored layout changes: every report is then built again
 VALUES_PER_QUERY = 300
 CHANGES_KEPT = 20_000
 

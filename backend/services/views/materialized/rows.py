@@ -2,8 +2,10 @@
 with the report's filters as indexed comparisons and its order as an index (keyset paging).
 
 A plain report keeps its rows as its query gives them. An aggregate report keeps its contributions (the rows
-before grouping, one unit per value of its COUNT(DISTINCT …) argument) and groups them when read, so filters
-that apply before grouping (a time window) stay exact.
+before grouping, one unit per value of its COUNT(DISTINCT …) argument), so filters that apply before grouping
+(a time window) stay exact when a filtered page groups them as it is read. Its unfiltered pages, the ones every
+visit opens with, read its groups: each group's aggregates kept in a table of their own, computed again for
+the groups a replacement touches, so a first page costs its own rows however many contributions there are.
 """
 
 from __future__ import annotations
@@ -77,7 +79,23 @@ class Layout:
         ]
         for sql in [*self.filter_columns.values(), *self.anchors.values()]:
             statements.append(f"CREATE INDEX IF NOT EXISTS {self.table}_{sql} ON {self.table} ({sql}, ord)")
+        if self.plan.is_aggregate:
+            values = ", ".join(f"v_{i}" for i in range(len(self.plan.aggregates)))
+            statements.append(
+                f"CREATE TABLE IF NOT EXISTS {self.table}_groups (ord TEXT PRIMARY KEY, row TEXT, {values}) "
+                "WITHOUT ROWID"
+            )
         return statements
+
+    @property
+    def tables(self) -> list[str]:
+        return [self.table, f"{self.table}_facets", *([f"{self.table}_groups"] if self.plan.is_aggregate else [])]
+
+    def grouped(self) -> str:
+        """The SELECT list of a group: its order, its sample row, each aggregate over its contributions."""
+        aggregates = ", ".join(_sql_aggregate(aggregate.function, aggregate.distinct, f"g_{index}")
+                               for index, aggregate in enumerate(self.plan.aggregates))  # fmt: skip
+        return f"ord, MIN(row), {aggregates}"
 
     def record(self, unit: str, index: int, row: Row) -> tuple[object, ...]:
         """One stored row: its unit, place, sort key, JSON, filter values, anchors, aggregate arguments."""
@@ -132,8 +150,8 @@ class ReportRows:
     def create(self, layout: Layout, *, fresh: bool) -> None:
         with self.db.writing() as connection:
             if fresh:
-                connection.execute(f"DROP TABLE IF EXISTS {layout.table}")
-                connection.execute(f"DROP TABLE IF EXISTS {layout.table}_facets")
+                for table in layout.tables:
+                    connection.execute(f"DROP TABLE IF EXISTS {table}")
             for statement in layout.schema():
                 connection.execute(statement)
 
@@ -141,14 +159,20 @@ class ReportRows:
         """The rows of `units` are now `rows[unit]` (none for a unit that has no rows any more)."""
         units = list(units)
         placeholders = ", ".join(["?"] * layout.column_count)
+        records = [layout.record(unit, index, row) for unit in units for index, row in enumerate(rows.get(unit, []))]
+        groups = {str(record[2]) for record in records}  # the groups the new rows join, and (below) those they leave
         with self.db.writing() as connection:
-            for start in range(0, len(units), 500):
-                chunk = units[start : start + 500]
-                connection.execute(f"DELETE FROM {layout.table} WHERE unit IN ({', '.join(['?'] * len(chunk))})", chunk)
-            connection.executemany(
-                f"INSERT INTO {layout.table} VALUES ({placeholders})",
-                [layout.record(unit, index, row) for unit in units for index, row in enumerate(rows.get(unit, []))],
-            )
+            for chunk in _chunks(units):
+                marks = ", ".join(["?"] * len(chunk))
+                if layout.plan.is_aggregate:
+                    groups.update(
+                        row[0] for row in connection.execute(f"SELECT ord FROM {layout.table} WHERE unit IN ({marks})",
+                                                             chunk)
+                    )  # fmt: skip
+                connection.execute(f"DELETE FROM {layout.table} WHERE unit IN ({marks})", chunk)
+            connection.executemany(f"INSERT INTO {layout.table} VALUES ({placeholders})", records)
+            if layout.plan.is_aggregate:
+                _regroup(connection, layout, sorted(groups))
             connection.executemany(
                 "INSERT INTO report_changes (report, unit, through) VALUES (?, ?, ?)",
                 [(layout.plan.name, unit, through) for unit in units],
@@ -171,8 +195,8 @@ class ReportRows:
 
     def clear(self, layout: Layout) -> None:
         with self.db.writing() as connection:
-            connection.execute(f"DELETE FROM {layout.table}")
-            connection.execute(f"DELETE FROM {layout.table}_facets")
+            for table in layout.tables:
+                connection.execute(f"DELETE FROM {table}")
 
     def prune_changes(self, keep: int) -> None:
         with self.db.writing() as connection:
@@ -253,15 +277,19 @@ class ReportRows:
     def _aggregate_page(
         self, layout: Layout, where: list[str], arguments: list[object], limit: int, offset: int, after: str | None
     ) -> Page:
-        aggregates = ", ".join(_sql_aggregate(aggregate.function, aggregate.distinct, f"g_{index}")
-                               for index, aggregate in enumerate(layout.plan.aggregates))  # fmt: skip
-        having = "HAVING ord > ?" if after is not None else ""
-        clause = f"WHERE {' AND '.join(where)}" if where else ""
+        """Unfiltered, a page of the kept groups; filtered, the matching contributions grouped as they are read."""
+        if where:
+            clause = f"WHERE {' AND '.join(where)}"
+            having = "HAVING ord > ?" if after is not None else ""
+            text = f"SELECT {layout.grouped()} FROM {layout.table} {clause} GROUP BY ord {having} ORDER BY ord"
+        else:
+            values = ", ".join(f"v_{i}" for i in range(len(layout.plan.aggregates)))
+            clause = "WHERE ord > ?" if after is not None else ""
+            text = f"SELECT ord, row, {values} FROM {layout.table}_groups {clause} ORDER BY ord"
         rows = (
             self.db.reader()
             .execute(
-                f"SELECT ord, MIN(row), {aggregates} FROM {layout.table} {clause} GROUP BY ord {having} "
-                "ORDER BY ord LIMIT ? OFFSET ?",
+                f"{text} LIMIT ? OFFSET ?",
                 [*arguments, *([after] if after is not None else []), limit + 1, 0 if after is not None else offset],
             )
             .fetchall()
@@ -278,6 +306,23 @@ class ReportRows:
 
     def close(self) -> None:
         self.db.close()
+
+
+def _regroup(connection: Any, layout: Layout, groups: Sequence[str]) -> None:
+    """Compute the kept aggregates of `groups` again from their contributions (a group left without any goes)."""
+    for chunk in _chunks(groups):
+        marks = ", ".join(["?"] * len(chunk))
+        connection.execute(f"DELETE FROM {layout.table}_groups WHERE ord IN ({marks})", chunk)
+        connection.execute(
+            f"INSERT INTO {layout.table}_groups SELECT {layout.grouped()} FROM {layout.table} WHERE ord IN ({marks}) "
+            "GROUP BY ord",
+            chunk,
+        )
+
+
+def _chunks(items: Sequence[str], size: int = 500) -> Iterable[Sequence[str]]:
+    for start in range(0, len(items), size):
+        yield items[start : start + size]
 
 
 def _stored(term: Term | None) -> JsonValue:
