@@ -5,6 +5,11 @@ from __future__ import annotations
 import httpx
 import pytest
 
+from segb_server.backend.config import PACKAGE_ROOT
+from segb_server.backend.services.sparql.catalog import Catalog
+from segb_server.backend.services.views.explain import FOLLOWED_INCOMING
+from segb_server.backend.services.views.graph import GraphService
+from segb_server.backend.store.base import Store
 from tests.support.live_server import LiveServer
 from tests.support.scenarios import keep_busy, lobby
 
@@ -115,3 +120,19 @@ def test_bad_graph_requests_name_the_problem(
     response = get(memory_api, path, **params)
     assert response.status_code == status
     assert named in response.text
+
+
+def test_resources_read_together_equal_each_read_alone(api: LiveServer, store: Store) -> None:
+    """An explanation reads its nodes in batches: two queries for many resources must describe each one as
+    reading it alone does, also when the batch reaches its limit and falls back to one resource at a time."""
+    scenario = lobby()
+    scenario.publish_all(api.url)
+    graph = GraphService(Catalog(PACKAGE_ROOT / "sparql"), store, None, lambda _: True)  # type: ignore[arg-type]
+    iris = sorted({str(iri) for iri in scenario.iris.values()})
+    for limit in (500, 1):  # 1: the batch's incoming statements reach its limit
+        together = graph.resources(iris, incoming=FOLLOWED_INCOMING, incoming_limit=limit)
+        alone = {iri: graph.resource(iri, incoming=FOLLOWED_INCOMING, incoming_limit=limit) for iri in iris}
+        assert together == alone, limit
+    described = graph.resources(iris)
+    assert sum(len(node["incoming"]) for node in described.values()) > 0  # type: ignore[arg-type]
+    assert described[str(scenario.iris["juan_1"])]["label"] == "Where is the pharmacy?"

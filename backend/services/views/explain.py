@@ -55,6 +55,8 @@ FOLLOWED_INCOMING = frozenset({
 })  # fmt: skip
 MAX_ACTIVITIES = 40
 MAX_DEPTH = 6
+PREFETCH = 80  # resources read in one batch at most
+RDF_TYPE = PREFIXES["rdf"] + "type"  # its objects are classes: never read to tell a story
 
 
 @dataclass
@@ -149,16 +151,30 @@ class ExplainService:
 
 
 class _Reader:
-    """Resource lookups for one explanation, each node read once."""
+    """Resource lookups for one explanation, each node read once. A node not read yet is read together with
+    every node the ones already read link to (the walk's next steps, most likely), so an explanation costs a
+    round trip to the store per step of its walk rather than per node."""
 
     def __init__(self, graph: GraphService) -> None:
         self.graph = graph
         self.cache: dict[str, Resource] = {}
+        self.linked: dict[str, None] = {}  # IRIs the nodes read so far link to, not read yet (in order)
 
     def get(self, iri: str) -> Resource:
         if iri not in self.cache:
-            self.cache[iri] = Resource(self.graph.resource(iri, incoming=FOLLOWED_INCOMING))
+            batch = [iri, *(linked for linked in self.linked if linked != iri)][:PREFETCH]
+            for body in self.graph.resources(batch, incoming=FOLLOWED_INCOMING).values():
+                self._add(Resource(body))
         return self.cache[iri]
+
+    def _add(self, node: Resource) -> None:
+        self.cache[node.iri] = node
+        self.linked.pop(node.iri, None)
+        statements = [s for s in node.body["outgoing"] if s["predicate"] != RDF_TYPE] + node.body["incoming"]
+        for statement in statements:
+            value = statement["value"]
+            if not statement["is_literal"] and isinstance(value, str) and value not in self.cache:
+                self.linked[value] = None
 
     def activities_of(self, node: Resource) -> list[str]:
         """The activity a seed stands for: itself, or the activity that produced it."""

@@ -8,7 +8,7 @@ cost does not grow with the log. Literals only name and place nodes; the rest ar
 
 from __future__ import annotations
 
-from collections.abc import Callable, Collection
+from collections.abc import Callable, Collection, Sequence
 
 from pyoxigraph import Literal, NamedNode
 
@@ -56,45 +56,39 @@ class GraphService:
         """Every triple from one resource and up to `incoming_limit` pointing at it (only those with the
         `incoming` predicates when given), with labels; blocking (store I/O). A robot after a month of logs is
         the object of hundreds of thousands of triples: `incoming_truncated` says when some were left out."""
-        outgoing = self._statements("graph/resource-out", iri)
-        query = self.catalog.get("graph/resource-in")
-        text, bindings = query.text, query.bindings({"iri": iri})
-        if incoming is not None:  # one VALUES row per (resource, predicate) instead of the resource alone
-            rows: list[list[Term | None]] = [[NamedNode(iri), NamedNode(p)] for p in sorted(incoming)]
-            text, bindings = (
-                bind_rows(text, [PARAMETER_VARIABLE_PREFIX + "iri", "predicate"], rows, wrap=self.store.wraps_values),
-                {},
-            )
-        found = self._statements_of(select(self.store, paged(text, incoming_limit + 1, None), bindings).rows)
-        truncated = len(found) > incoming_limit
-        incoming_statements = sorted(found[:incoming_limit], key=lambda s: (s["predicate"], str(s["value"])))
-        types = {str(s["value"]) for s in outgoing if s["predicate"] == RDF_TYPE}
-        literals: dict[str, str] = {}
-        for statement in outgoing:
-            if statement["is_literal"]:
-                literals.setdefault(str(statement["predicate"]), str(statement["value"]))
-        kind = kind_of(types, timestamped=GENERATED_AT in literals)
-        category = next((str(s["value"]) for s in outgoing if s["predicate"] == CATEGORY), None)
-        node: dict[str, object] = {
-            "id": iri,
-            "label": display_label(iri, kind, literals, category),
-            "kind": kind,
-            "types": sorted(compact(t) for t in types),
-        }
-        time = next((literals[p] for p in TIMES if p in literals), None)
-        if time:
-            node["time"] = time
-        return {
-            **node,
-            "iri": iri,
-            "outgoing": outgoing,
-            "incoming": incoming_statements,
-            "incoming_truncated": truncated,
-        }
+        return self.resources([iri], incoming=incoming, incoming_limit=incoming_limit)[iri]
 
-    def _statements(self, query_name: str, iri: str) -> list[dict[str, object]]:
-        query = self.catalog.get(query_name)
-        return self._statements_of(select(self.store, query.text, query.bindings({"iri": iri})).rows)
+    def resources(
+        self, iris: Sequence[str], *, incoming: Collection[str] | None = None, incoming_limit: int = INCOMING_LIMIT
+    ) -> dict[str, dict[str, object]]:
+        """`resource` of several IRIs with two queries for them all (a remote store costs a round trip per
+        query, and an explanation reads a few dozen resources). Each still gets at most `incoming_limit`
+        incoming statements; when the batch as a whole reaches its limit, which resource lost statements is
+        unknown, so each is read again on its own."""
+        iris = list(dict.fromkeys(iris))
+        wrap = self.store.wraps_values
+        parameter = PARAMETER_VARIABLE_PREFIX + "iri"
+        out_text = bind_rows(self.catalog.get("graph/resource-out").text, [parameter],
+                             [[NamedNode(iri)] for iri in iris], wrap=wrap)  # fmt: skip
+        outgoing = self._by_resource(iris, select(self.store, out_text).rows)
+        in_text = self.catalog.get("graph/resource-in").text
+        if incoming is None:
+            in_text = bind_rows(in_text, [parameter], [[NamedNode(iri)] for iri in iris], wrap=wrap)
+        else:  # one VALUES row per (resource, predicate) instead of the resource alone
+            rows: list[list[Term | None]] = [[NamedNode(i), NamedNode(p)] for i in iris for p in sorted(incoming)]
+            in_text = bind_rows(in_text, [parameter, "predicate"], rows, wrap=wrap)
+        limit = len(iris) * (incoming_limit + 1)
+        found = select(self.store, paged(in_text, limit, None)).rows
+        if len(iris) > 1 and len(found) >= limit:
+            return {iri: self.resource(iri, incoming=incoming, incoming_limit=incoming_limit) for iri in iris}
+        pointing = self._by_resource(iris, found)
+        return {iri: _described(iri, outgoing[iri], pointing[iri], incoming_limit) for iri in iris}
+
+    def _by_resource(self, iris: list[str], rows: list[dict[str, Term]]) -> dict[str, list[dict[str, object]]]:
+        grouped: dict[str, list[dict[str, Term]]] = {iri: [] for iri in iris}
+        for row in rows:
+            grouped[row["resource"].value].append(row)
+        return {iri: self._statements_of(found) for iri, found in grouped.items()}
 
     def _statements_of(self, rows: list[dict[str, Term]]) -> list[dict[str, object]]:
         statements = []
@@ -116,6 +110,35 @@ class GraphService:
                 statement["label"] = local_name(value.value) if isinstance(value, NamedNode) else str(json_value(value))
             statements.append(statement)
         return statements
+
+
+def _described(
+    iri: str, outgoing: list[dict[str, object]], incoming: list[dict[str, object]], incoming_limit: int
+) -> dict[str, object]:
+    """A resource as `GraphService.resource` answers it, from its statements."""
+    types = {str(s["value"]) for s in outgoing if s["predicate"] == RDF_TYPE}
+    literals: dict[str, str] = {}
+    for statement in outgoing:
+        if statement["is_literal"]:
+            literals.setdefault(str(statement["predicate"]), str(statement["value"]))
+    kind = kind_of(types, timestamped=GENERATED_AT in literals)
+    category = next((str(s["value"]) for s in outgoing if s["predicate"] == CATEGORY), None)
+    node: dict[str, object] = {
+        "id": iri,
+        "label": display_label(iri, kind, literals, category),
+        "kind": kind,
+        "types": sorted(compact(t) for t in types),
+    }
+    time = next((literals[p] for p in TIMES if p in literals), None)
+    if time:
+        node["time"] = time
+    return {
+        **node,
+        "iri": iri,
+        "outgoing": outgoing,
+        "incoming": sorted(incoming[:incoming_limit], key=lambda s: (s["predicate"], str(s["value"]))),
+        "incoming_truncated": len(incoming) > incoming_limit,
+    }
 
 
 def parse_types(raw: str | None) -> tuple[str, ...]:

@@ -35,6 +35,7 @@ logger = logging.getLogger("segb.reports")
 
 PLAN_VERSION = "3"  # bump when the stored layout changes: every report is then built again
 VALUES_PER_QUERY = 300
+BRANCHES_PER_QUERY = 12  # key-finding chains asked in one query
 CHANGES_KEPT = 20_000
 
 
@@ -166,6 +167,7 @@ def units_touched(
     by_predicate: dict[str, list[Quad]] = {}
     for quad in quads:
         by_predicate.setdefault(quad.predicate.value, []).append(quad)
+    branches: list[str] = []
     for pattern in plan.patterns:
         if pattern in ignored:
             continue
@@ -178,16 +180,18 @@ def units_touched(
             continue
         names = sorted(pattern.variables())
         rows = list({tuple(term_text(binding[name]) for name in names): binding for binding in bindings}.values())
-        # One query per chain, not a UNION of them: the VALUES must bind the chain's own group (a BIND in a
-        # UNION branch would not see them, and the branch would reach every unit of the store).
+        # One branch per chain, each opening with its own VALUES: they must bind the chain's own group (a BIND
+        # in a UNION branch would not see VALUES outside it, and the branch would reach every unit of the store).
         for path in paths(plan, pattern, target):
             for start in range(0, len(rows), VALUES_PER_QUERY):
                 chunk = rows[start : start + VALUES_PER_QUERY]
                 values = " ".join("(" + " ".join(term_text(binding[n]) for n in names) + ")" for binding in chunk)
-                query = (
-                    f"SELECT DISTINCT {target} WHERE {{ VALUES ({' '.join(names)}) {{ {values} }} {' '.join(path)} }}"
-                )
-                units.update(term_text(row[unit]) for row in select(store, query).rows if unit in row)
+                branches.append(f"{{ VALUES ({' '.join(names)}) {{ {values} }} {' '.join(path)} }}")
+    # The branches asked together: a remote store costs a round trip per query, and a post touches a handful.
+    for start in range(0, len(branches), BRANCHES_PER_QUERY):
+        union = " UNION ".join(branches[start : start + BRANCHES_PER_QUERY])
+        units.update(term_text(row[unit]) for row in select(store, f"SELECT DISTINCT {target} WHERE {{ {union} }}").rows
+                     if unit in row)  # fmt: skip
     return units
 
 
