@@ -16,7 +16,7 @@ import re
 from collections import deque
 from collections.abc import Iterable
 
-from pyoxigraph import Quad, RdfFormat, Triple, parse
+from pyoxigraph import Literal, Quad, RdfFormat, Triple, parse
 
 from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, CatalogQuery
 from segb_server.backend.services.views.materialized.plan import (
@@ -167,7 +167,8 @@ def units_touched(
     by_predicate: dict[str, list[Quad]] = {}
     for quad in quads:
         by_predicate.setdefault(quad.predicate.value, []).append(quad)
-    branches: list[str] = []
+    branches: list[str] = []  # asked together
+    alone: list[str] = []  # asked one by one
     for pattern in plan.patterns:
         if pattern in ignored:
             continue
@@ -186,10 +187,16 @@ def units_touched(
             for start in range(0, len(rows), VALUES_PER_QUERY):
                 chunk = rows[start : start + VALUES_PER_QUERY]
                 values = " ".join("(" + " ".join(term_text(binding[n]) for n in names) + ")" for binding in chunk)
-                branches.append(f"{{ VALUES ({' '.join(names)}) {{ {values} }} {' '.join(path)} }}")
-    # The branches asked together: a remote store costs a round trip per query, and a post touches a handful.
-    for start in range(0, len(branches), BRANCHES_PER_QUERY):
-        union = " UNION ".join(branches[start : start + BRANCHES_PER_QUERY])
+                branch = f"{{ VALUES ({' '.join(names)}) {{ {values} }} {' '.join(path)} }}"
+                # Virtuoso 7 fails a UNION whose branch binds a literal ("Unknown language in
+                # RDF_LANGUAGE_OF_OBJ"): such a branch is asked alone.
+                has_literal = any(isinstance(binding[n], Literal) for binding in chunk for n in names)
+                (alone if has_literal else branches).append(branch)
+    # The others together: a remote store costs a round trip per query, and a post touches a handful of them.
+    queries = [[branch] for branch in alone]
+    queries += [branches[start : start + BRANCHES_PER_QUERY] for start in range(0, len(branches), BRANCHES_PER_QUERY)]
+    for group in queries:
+        union = " UNION ".join(group)
         units.update(term_text(row[unit]) for row in select(store, f"SELECT DISTINCT {target} WHERE {{ {union} }}").rows
                      if unit in row)  # fmt: skip
     return units
