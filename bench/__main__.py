@@ -95,6 +95,7 @@ def main(argv: list[str] | None = None) -> int:
             profile = replace(profile, report_sizes=tuple(args.report_sizes))
         figures = measure(args.profile, profile, not args.no_virtuoso, frozenset(args.only or SECTIONS))
         figures.code = args.code
+        figures.command = " ".join(["python -m bench", *(argv if argv is not None else sys.argv[1:])])
     for path in args.add_reports_from:
         figures.add_reports(pickle.loads(path.read_bytes()))
     if args.save_figures:

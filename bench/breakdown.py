@@ -67,7 +67,12 @@ def _reports_upkeep(services: Any) -> Any:
     """What keeps the reports current (its thread started, `wait_until_current` returns once it has caught
     up), wherever the services hold it; None when they hold nothing of the kind."""
     reports = getattr(services, "reports", None)
-    for candidate in (getattr(services, "projector", None), getattr(reports, "maintainer", None)):
+    candidates = (
+        getattr(services, "views", None),
+        getattr(services, "projector", None),
+        getattr(reports, "maintainer", None),
+    )
+    for candidate in candidates:
         if candidate is not None and hasattr(candidate, "wait_until_current") and hasattr(candidate, "start"):
             return candidate
     return None

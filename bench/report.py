@@ -39,6 +39,7 @@ class Figures:
     failures: list[str] = field(default_factory=list)  # runs that stopped before the end
     added_runs: list[str] = field(default_factory=list)  # where figures added from other runs come from
     code: str = ""  # what was measured: a commit
+    command: str = ""  # how it was measured (the bench's arguments)
     load_at_end: str = ""
 
     def add_reports(self, other: Figures) -> None:
@@ -61,9 +62,11 @@ class Figures:
         if added:
             sizes = ", ".join(f"{store} {size:,}" for store, size in added)
             finished = f"{other.finished:%Y-%m-%d}" if other.finished else "another day"
+            command = getattr(other, "command", "") or (
+                f"python -m bench --profile {other.profile}{'' if other.virtuoso else ' --no-virtuoso'}"
+            )
             self.added_runs.append(
-                f"Section 5's rows for {sizes} triples come from `python -m bench --profile {other.profile}"
-                f"{'' if other.virtuoso else ' --no-virtuoso'}`, run on the same machine on {finished} "
+                f"Section 5's rows for {sizes} triples come from `{command}`, run on the same machine on {finished} "
                 f"({other.wall_seconds:.0f} s, load average at start {other.machine.get('load average at start')})."
             )
 
@@ -236,7 +239,7 @@ def _live_section(f: Figures) -> list[str]:
         "**Loading and start-up**",
         "",
         *table(
-            ["store", "triples", "load (`segb import`) s", "server ready s", "every report from rows s",
+            ["store", "triples", "load (`segb import`) s", "server ready s", "every view built s",
              "slowest build (report, keys, s)"],
             [[store, f"{size:,}", f"{live.load_seconds:.1f}", f"{live.ready_seconds:.1f}",
               _seconds(live.rows_seconds), _slowest_build(live)] for (store, size), live in f.live.items()],

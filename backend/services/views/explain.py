@@ -4,8 +4,9 @@ From the seed, the walk goes backwards along what triggered each activity (`segb
 `segb:triggeredByEntity`, the activity that generated a triggering message, `prov:wasDerivedFrom`) and
 forwards along what it triggered, then tells each activity as one step of a story in time order: who
 performed it, what was heard or said, which models it used, which emotions it read, which shared event
-and human it was about. Each node is read with `GraphService.resource` (two small bound queries), so an
-explanation costs a few dozen lookups whatever the size of the store.
+and human it was about. Nodes are read with `GraphService.resources`, a batch at a time (two bound queries
+for every node the walk may read next), so an explanation costs a round trip per step of its walk whatever
+the size of the store: ten queries for a reply on Virtuoso, where one per node took 38.
 """
 
 from __future__ import annotations

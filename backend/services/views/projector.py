@@ -32,8 +32,10 @@ logger = logging.getLogger("segb.views")
 BATCH_STEPS = 200  # applied steps handled together: one update per view for a burst of posts
 # After a batch, the thread rests this many times as long as the batch took before taking the next: under a
 # steady stream of posts the views then use at most half of the time (and of the store's), the next batch
-# holds more posts for the same number of queries, and requests keep their share of the cores.
+# holds more posts for the same number of queries, and requests keep their share of the cores. Never longer
+# than MAX_REST_SECONDS: after a slow batch a long rest would let the next one grow, and the views fall behind.
 REST_RATIO = 1.0
+MAX_REST_SECONDS = 0.25
 
 
 class Projection(Protocol):
@@ -137,7 +139,7 @@ class Projector:
             for marker in steps:
                 if isinstance(marker, _Marker):
                     marker.done.set()
-            if applied and self._stopping.wait(REST_RATIO * (time.monotonic() - began)):
+            if applied and self._stopping.wait(min(MAX_REST_SECONDS, REST_RATIO * (time.monotonic() - began))):
                 return
 
     def _process_retrying(self, applied: list[Applied]) -> bool:
