@@ -61,6 +61,8 @@ class Store(Protocol):
     # A VALUES block of several rows wraps the WHERE group instead of opening it (`bind_rows`): Virtuoso 7 skips
     # FILTERs of a group that opens with one. Elsewhere it opens the group, so the store joins from it.
     wraps_values: bool
+    # Queries wait on the network (a SPARQL server), not on this process's cores: several at once finish sooner.
+    remote: bool
 
     def ping(self) -> None:
         """Raise StoreUnavailable unless the store answers a trivial query."""

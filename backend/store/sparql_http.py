@@ -40,6 +40,7 @@ class SparqlHttpStore:
 
     kind = "sparql"
     wraps_values = False
+    remote = True
 
     def __init__(
         self,

@@ -6,9 +6,10 @@ background thread fed by the applier, so every view follows the same stream in t
 records the journal sequence it includes: after a restart it catches up from the journal instead of being
 built again.
 
-The views of one batch are updated side by side, each in a worker thread of its own: their work is mostly
-waiting for the store's answers (a remote store costs a round trip per query), so a batch takes as long as
-its slowest view rather than all of them added up.
+On a remote store the views of one batch are updated side by side, each in a worker thread of its own: their
+work is mostly waiting for the store's answers (a round trip per query), so a batch takes as long as its
+slowest view rather than all of them added up. On the embedded store the same work is this process's own CPU,
+which the posts need too: the views take turns there.
 """
 
 from __future__ import annotations
@@ -73,7 +74,8 @@ class Projector:
         self._progress = threading.Condition()
         self.last_error: str | None = None
         self.through = 0  # the journal entry every view is current through
-        self._workers = ThreadPoolExecutor(max_workers=max(1, len(projections)), thread_name_prefix="segb-view")
+        workers = max(1, len(projections)) if store.remote else 1
+        self._workers = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="segb-view")
 
     def start(self) -> None:
         self._thread = threading.Thread(target=self._run, name="segb-views", daemon=True)
