@@ -95,7 +95,7 @@ def main(argv: list[str] | None = None) -> int:
             profile = replace(profile, report_sizes=tuple(args.report_sizes))
         figures = measure(args.profile, profile, not args.no_virtuoso, frozenset(args.only or SECTIONS))
         figures.code = args.code
-        figures.command = " ".join(["python -m bench", *(argv if argv is not None else sys.argv[1:])])
+        figures.command = measuring_command(argv if argv is not None else sys.argv[1:])
     for path in args.add_reports_from:
         figures.add_reports(pickle.loads(path.read_bytes()))
     if args.save_figures:
@@ -186,6 +186,20 @@ def run_embedded(profile: Profile, loads: Loads, root: Path, figures: Figures, s
                                     LIVE_RATE)  # fmt: skip
         figures.live[(label, size)] = measured
         figures.peak_rss_mib[(f"API process, {label}", size)] = measured.peak_rss_mib
+
+
+def measuring_command(argv: list[str]) -> str:
+    """The command line as far as it decides what is measured (not where figures and the report go)."""
+    kept: list[str] = []
+    skip = False
+    for argument in argv:
+        if skip:
+            skip = False
+        elif argument in ("--output", "--save-figures", "--code"):
+            skip = True
+        elif not argument.startswith(("--output=", "--save-figures=", "--code=")):
+            kept.append(argument)
+    return " ".join(["python -m bench", *kept])
 
 
 def code_version() -> str:

@@ -15,7 +15,10 @@ from bench.virtuoso import Floor
 MACHINE_NOTE = [
     "The machine's 2 cores are shared with other work, and the clients run on them too: every figure is from",
     "one modest run (a few hundred to a few thousand requests per row), not a tuned or isolated one. Treat",
-    "differences of a few tenths of a millisecond as noise.",
+    "differences of a few tenths of a millisecond as noise. Whole runs differ more: on 2026-11-24 three runs of",
+    "section 1 on the same code put the embedded small post's p50 at 3.4, 4.6 and 6.5 ms, and the in-process",
+    "steps of its breakdown moved together by up to 2x (a virtual machine whose neighbours vary). Compare rows",
+    "of one run with each other, not with another run's.",
 ]
 
 REFERENCE_NOTE = [
