@@ -119,7 +119,7 @@ class ReportProjection:
         """The report's rows grouped by unit: for `units` only, or (None) for all."""
         unbound = {PARAMETER_VARIABLE_PREFIX + p: None for p in self.layout.parameters}
         text = bind_values(self.text, unbound)
-        chunks = [None] if units is None else [units[i : i + VALUES_PER_QUERY] for i in range(0, len(units), 300)]
+        chunks: list[list[str] | None] = [None] if units is None else _slices(units, VALUES_PER_QUERY)
         grouped: dict[str, list[Row]] = {unit: [] for unit in units or []}
         for chunk in chunks:
             bound = (
@@ -137,11 +137,7 @@ class ReportProjection:
         """The facet's values for `anchors` replaced (None: for every anchor, when the report is built)."""
         variable = PARAMETER_VARIABLE_PREFIX + facet.parameter
         selected = f"SELECT DISTINCT {facet.anchor} ?{variable}"
-        chunks = (
-            [None]
-            if anchors is None
-            else [anchors[i : i + VALUES_PER_QUERY] for i in range(0, len(anchors), VALUES_PER_QUERY)]
-        )
+        chunks: list[list[str] | None] = [None] if anchors is None else _slices(anchors, VALUES_PER_QUERY)
         pairs: list[tuple[str, str]] = []
         # One query per EXISTS body, the anchors' VALUES beside its patterns: inside a UNION branch they would
         # not bind the branch, which would then be evaluated for every anchor in the store.
@@ -287,6 +283,10 @@ def _facet_plan(plan: ReportPlan, facet: FacetFilter) -> ReportPlan:
         guaranteed={group: {group} for group in groups},
         mandatory={group: [p for p in patterns if p.group == group] for group in groups},
     )
+
+
+def _slices(items: list[str], size: int) -> list[list[str] | None]:
+    return [items[start : start + size] for start in range(0, len(items), size)]
 
 
 def _term(text: str) -> Term:

@@ -182,8 +182,7 @@ class ReportRows:
         self, layout: Layout, parameter: str, anchors: Sequence[str], pairs: list[tuple[str, str]]
     ) -> None:
         with self.db.writing() as connection:
-            for start in range(0, len(anchors), 500):
-                chunk = list(anchors[start : start + 500])
+            for chunk in _chunks(anchors):
                 marks = ", ".join(["?"] * len(chunk))
                 connection.execute(
                     f"DELETE FROM {layout.table}_facets WHERE param = ? AND anchor IN ({marks})", [parameter, *chunk]
