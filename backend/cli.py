@@ -6,21 +6,19 @@ Settings come from, highest first: command-line flags, environment variables, a 
 from __future__ import annotations
 
 import argparse
-import asyncio
 import contextlib
 import logging
-import signal
 import sys
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import uvicorn
 from pydantic import ValidationError
 from tqdm import tqdm
 
 from segb_server.backend.config import Settings
 from segb_server.backend.services.errors import ServiceError
+from segb_server.backend.services.ops.leadership import LOCK_FILE
 from segb_server.backend.store.base import StoreError
 
 if TYPE_CHECKING:  # the services are imported by the commands that need them, not whenever the CLI starts
@@ -58,6 +56,12 @@ def _parser() -> argparse.ArgumentParser:
     serve.add_argument("--backend-url", help="URL the UI uses to reach the API (BACKEND_URL; default the API's)")
     serve.add_argument("--only", choices=["api", "ui"], help="run just one of the two servers (default: both)")
     serve.add_argument("--demo", action="store_true", help="load the demo dataset at start-up if the store is empty")
+    serve.add_argument(
+        "--workers",
+        dest="api_workers",
+        type=int,
+        help="API processes sharing the port (API_WORKERS; default 1); more than one needs STORE=virtuoso or sparql",
+    )
     serve.set_defaults(handler=_serve)
 
     rebuild = commands.add_parser(
@@ -133,51 +137,30 @@ def _settings(args: argparse.Namespace, *names: str) -> Settings:
 
 
 def _serve(args: argparse.Namespace) -> int:
-    settings = _settings(args, "host", "api_port", "ui_port", "backend_url")
+    names = ("host", "api_port", "ui_port", "backend_url", "api_workers")
+    settings = _settings(args, *names)
     logging.basicConfig(level=settings.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     # httpx logs every request at INFO; the store monitor and the UI make many, and the API logs its own.
     logging.getLogger("httpx").setLevel(max(logging.WARNING, logging.getLevelName(settings.log_level)))
-    from segb_server.backend.api.app import create_app
-    from segb_server.ui.app import create_ui_app
+    from segb_server.backend.serving import WorkersRefused, check_shareable, hand_down, serve, serve_api_workers
 
     if args.demo and args.only == "ui":
         return _fail("--demo fills the API's store: drop --only ui")
     if args.only in (None, "api"):
         _check_catalog(settings)
-    configs = []
-    if args.only in (None, "api"):
-        # No uvicorn access log: the API logs one line per request itself (backend/api/request_context.py).
-        api = create_app(settings, demo=args.demo)
-        configs.append(
-            uvicorn.Config(
-                api,
-                host=settings.host,
-                port=settings.api_port,
-                access_log=False,
-                proxy_headers=True,
-                forwarded_allow_ips=settings.forwarded_allow_ips,
-            )
-        )
-    if args.only in (None, "ui"):
-        # Only proxies in FORWARDED_ALLOW_IPS may say the browser came over HTTPS (X-Forwarded-Proto): then the
-        # session and CSRF cookies are Secure behind a TLS-terminating proxy.
-        configs.append(
-            uvicorn.Config(
-                create_ui_app(settings),
-                host=settings.host,
-                port=settings.ui_port,
-                access_log=False,
-                proxy_headers=True,
-                forwarded_allow_ips=settings.forwarded_allow_ips,
-            )
-        )
+    try:
+        check_shareable(settings, demo=args.demo)
+    except WorkersRefused as refused:
+        return _fail(str(refused))
     if args.only in (None, "api"):
         print(f"SEGB API  http://{settings.host}:{settings.api_port}/docs", file=sys.stderr)
     if args.only in (None, "ui"):
         print(f"SEGB UI   http://{settings.host}:{settings.ui_port}/reports", file=sys.stderr)
-    # uvicorn's own choice of loop (uvloop when installed), which `asyncio.run` would bypass.
-    with asyncio.Runner(loop_factory=configs[0].get_loop_factory()) as runner:
-        runner.run(_serve_together([_QuietServer(config) for config in configs]))
+    if settings.api_workers > 1 and args.only != "ui":
+        hand_down({name: getattr(args, name) for name in ("store", "data_dir", *names) if getattr(args, name, None)})
+        serve_api_workers(settings, with_ui=args.only is None)
+    else:
+        serve(settings, api=args.only in (None, "api"), ui=args.only in (None, "ui"), demo=args.demo)
     return 0
 
 
@@ -187,26 +170,6 @@ def _check_catalog(settings: Settings) -> None:
     from segb_server.backend.services.sparql.catalog import Catalog
 
     Catalog(settings.sparql_dir, required=REQUIRED_QUERIES)
-
-
-class _QuietServer(uvicorn.Server):
-    """Leaves signals to `_serve_together`, which stops every server on Ctrl-C, not just the last one."""
-
-    @contextlib.contextmanager
-    def capture_signals(self) -> Iterator[None]:
-        yield
-
-
-async def _serve_together(servers: list[uvicorn.Server]) -> None:
-    loop = asyncio.get_running_loop()
-
-    def stop() -> None:
-        for server in servers:
-            server.should_exit = True
-
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        loop.add_signal_handler(signum, stop)
-    await asyncio.gather(*(server.serve() for server in servers))
 
 
 # --- import / export ---------------------------------------------------------------------------------
@@ -229,6 +192,8 @@ def _import(args: argparse.Namespace) -> int:
 def _rebuild(args: argparse.Namespace) -> int:
     settings = _settings(args)
     with _services(settings) as services:
+        if not services.leadership.try_acquire():
+            return _fail(f"a server is running on {settings.data_dir} (it holds {LOCK_FILE}): stop it first")
         journal, store = services.journal, services.store
         start = journal.last_clearing()
         removed = store.clear(through=start)

@@ -99,6 +99,9 @@ class Settings(BaseSettings):
     # --- HTTP servers ------------------------------------------------------------------------------------
     host: str = Field("127.0.0.1", description="Interface the API and UI listen on.")
     api_port: int = Field(5000, ge=0, le=65535, description="Port of the API.")
+    api_workers: int = Field(
+        1, ge=1, le=64, description="API processes on the API port (segb serve --workers); >1 needs a remote store."
+    )
     ui_port: int = Field(8080, ge=0, le=65535, description="Port of the web UI.")
     backend_url: str = Field(
         "",

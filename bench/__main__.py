@@ -59,7 +59,8 @@ PROFILES = {
     "full": Profile(2_000, 16, 200, 1_000, (100_000, 1_000_000), 30, 20, 6_000),
 }
 BREAKDOWN_POSTS = 300
-SECTIONS = ("small", "robots", "steady", "cumulative", "reports")
+SECTIONS = ("small", "robots", "workers", "steady", "cumulative", "reports")
+WORKER_COUNTS = (1, 2, 4)  # API processes (API_WORKERS) sharing one Virtuoso, in the "workers" section
 TRIPLES_PER_INTERACTION = 151
 INTERACTIONS_PER_COPY = 100
 
@@ -188,6 +189,10 @@ def run_embedded(profile: Profile, loads: Loads, root: Path, figures: Figures, s
         figures.peak_rss_mib[(f"API process, {label}", size)] = measured.peak_rss_mib
 
 
+def workers_label(workers: int) -> str:
+    return f"virtuoso, {workers} API worker{'s' if workers > 1 else ''}"
+
+
 def measuring_command(argv: list[str]) -> str:
     """The command line as far as it decides what is measured (not where figures and the report go)."""
     kept: list[str] = []
@@ -272,6 +277,13 @@ def run_virtuoso(profile: Profile, loads: Loads, root: Path, figures: Figures, s
                 figures.robots[BASELINE] = many_robots(
                     naive.url, robots, BASELINE, lambda: count_graph(virtuoso, naive_graph)
                 )
+        if "workers" in sections:
+            for workers in WORKER_COUNTS:
+                name = workers_label(workers)
+                graph = f"{GRAPH}/workers{workers}"
+                with segb_server("virtuoso", root / f"v-workers{workers}", env(graph, API_WORKERS=str(workers))) as one:
+                    count = lambda: stored_triples(one.url)  # noqa: E731
+                    figures.robots[name] = many_robots(one.url, robots, name, count, readiness=True)
         if "steady" in sections:
             with segb_server("virtuoso", root / "v-steady", env(GRAPH + "/steady", INGEST_ACK="journal")) as server:
                 figures.steady[label] = steady_lag(server.url, deltas, LIVE_RATE, profile.steady_seconds)

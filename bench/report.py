@@ -364,8 +364,8 @@ def write_report(f: Figures, path: Path) -> None:
         "minutes here) or `python -m bench --profile full` (1,000 interactions, reports at 100,000 and 1,000,000",
         "triples; add `--no-virtuoso` for the embedded store alone). `--save-figures` keeps what a run measured,",
         "`--from-figures` writes this page again from it, and `--add-reports-from` adds another run's report sizes.",
-        "`--only SECTION` (small, robots, steady, cumulative, reports; repeatable) measures part of a profile, and",
-        "`--report-sizes N …` sets the store sizes of the reports section.",
+        "`--only SECTION` (small, robots, workers, steady, cumulative, reports; repeatable) measures part of a",
+        "profile, and `--report-sizes N …` sets the store sizes of the reports section.",
         "",
         *(line for note in getattr(f, "added_runs", []) for line in (note, "")),
     ]

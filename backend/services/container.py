@@ -8,6 +8,7 @@ from segb_server.backend.config import Settings
 from segb_server.backend.services.ingest.applier import Applier
 from segb_server.backend.services.ingest.journal import JOURNAL_FILE, Journal
 from segb_server.backend.services.ingest.service import IngestService
+from segb_server.backend.services.ops.leadership import LOCK_FILE, Leadership
 from segb_server.backend.services.ops.result_cache import DataVersion, ResultCache
 from segb_server.backend.services.ops.server_log import ServerLog
 from segb_server.backend.services.shared_context.policy import Policy
@@ -47,10 +48,13 @@ class Services:
     shared_context: SharedContextService
     queries: QueryRunner
     views: Projector  # keeps the reports' rows and the graph index current
+    leadership: Leadership  # held by the one process (of several on this data directory) that applies and keeps views
     server_log: ServerLog | None = None  # the API's own log; None where nothing serves it (the CLI, the demo)
 
     def start(self) -> None:
-        """Start the background work of a serving API: applying the journal, keeping the views current."""
+        """Start the background work of a serving API: applying the journal, keeping the views current (or, when
+        another process on this data directory does that, following it)."""
+        self.leadership.try_acquire()
         self.applier.start()
         self.views.start()
 
@@ -63,6 +67,7 @@ class Services:
         self.queries.close()
         self.journal.close()
         self.shared_context.close()
+        self.leadership.release()
 
 
 def build_services(
@@ -77,7 +82,8 @@ def build_services(
         sync_full=settings.journal_sync == "full",
         max_bytes=settings.journal_max_bytes,
     )
-    applier = Applier(journal, store, batch_triples=settings.apply_batch_triples)
+    leadership = Leadership(None if in_memory else settings.data_dir / LOCK_FILE)
+    applier = Applier(journal, store, batch_triples=settings.apply_batch_triples, leadership=leadership)
     version = DataVersion()
     applier.on_applied(lambda _step: version.bump())  # whatever the applier writes invalidates cached results
     cache = ResultCache(version, enabled=store.kind in OWNED_STORES)
@@ -85,7 +91,7 @@ def build_services(
     for query in catalog.under(REPORTS_FOLDER):
         maintainer.add(query)
     index = GraphIndex(store, None if in_memory else settings.data_dir / GRAPH_FILE)
-    views = Projector(store, journal, [*maintainer.reports.values(), index])
+    views = Projector(store, journal, [*maintainer.reports.values(), index], leadership)
     applier.on_applied(views.on_applied)
     graph = GraphService(catalog, store, index, wait_ready=lambda timeout: views.wait_for(0, timeout))
     return Services(
@@ -117,5 +123,6 @@ def build_services(
             snapshots=None if in_memory else settings.data_dir / "snapshots",
         ),
         views=views,
+        leadership=leadership,
         server_log=server_log,
     )

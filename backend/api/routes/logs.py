@@ -25,6 +25,7 @@ class LogEntry(BaseModel):
     level: str
     logger: str = Field(examples=["segb.requests"])
     message: str
+    process: int | None = Field(None, description="The pid of the API process that wrote it (one of its workers).")
     request_id: str | None = None
     user: str | None = None
     origin_ip: str | None = Field(None, description="The client's address (the TCP peer) of a request entry.")

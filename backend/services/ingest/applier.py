@@ -5,6 +5,10 @@ a restart, or the store's own outage, applying resumes there; re-applying an ent
 with no cursor (new, wiped, or from before the journal) is brought up from the last clearing. Whoever wants
 entries applied calls `apply_pending` — the background thread, or a post that waits for its own entry — and
 one at a time applies everything the journal holds.
+
+With several API processes on one journal (`segb serve --workers N`), only the process holding the
+leadership applies; the others follow: they read the store's cursor instead, so their readiness, backlog
+limit and `INGEST_ACK=store` waits see what the leader applied.
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ from dataclasses import dataclass
 from pyoxigraph import Quad, RdfFormat, parse
 
 from segb_server.backend.services.ingest.journal import Journal, JournalEntry
+from segb_server.backend.services.ops.leadership import Leadership
 from segb_server.backend.store.base import Store, StoreError
 
 logger = logging.getLogger("segb.applier")
@@ -25,6 +30,8 @@ logger = logging.getLogger("segb.applier")
 ENTRIES_PER_READ = 500
 FIRST_RETRY_SECONDS = 0.2
 MAX_RETRY_SECONDS = 5.0
+FOLLOW_SECONDS = 0.5  # how often a following process reads the store's cursor, and tries to take the lead
+WAIT_POLL_SECONDS = 0.05  # how often a follower waiting for one entry (INGEST_ACK=store) asks the store
 
 
 @dataclass(frozen=True)
@@ -40,9 +47,12 @@ Listener = Callable[[Applied], None]
 
 
 class Applier:
-    def __init__(self, journal: Journal, store: Store, *, batch_triples: int) -> None:
+    def __init__(
+        self, journal: Journal, store: Store, *, batch_triples: int, leadership: Leadership | None = None
+    ) -> None:
         self.journal = journal
         self.store = store
+        self.leadership = leadership or Leadership(None)
         self.batch_triples = batch_triples
         self._applied: int | None = None  # None: to be read from the store
         self._apply_lock = threading.Lock()
@@ -72,8 +82,8 @@ class Applier:
     def _run(self) -> None:
         delay = FIRST_RETRY_SECONDS
         while not self._stop.is_set():
-            # Also wakes by itself: another process may have appended entries (several API workers).
-            self._wake.wait(timeout=0.5)
+            # Also wakes by itself: another process may have appended entries, or applied them (API workers).
+            self._wake.wait(timeout=FOLLOW_SECONDS)
             self._wake.clear()
             try:
                 self.apply_pending()
@@ -102,7 +112,10 @@ class Applier:
 
     def apply_pending(self) -> int:
         """Apply every entry the journal holds beyond the store's cursor; returns the cursor. Raises
-        StoreError when the store fails (nothing is lost: the next call resumes at the cursor)."""
+        StoreError when the store fails (nothing is lost: the next call resumes at the cursor). In a process
+        that does not lead, only reads how far the leader applied."""
+        if not self.leadership.try_acquire():
+            return self._follow()
         with self._apply_lock:
             try:
                 if self._applied is None:
@@ -125,7 +138,16 @@ class Applier:
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:
                     return False
-                self._progress.wait(remaining)
+                if self.leadership.held:
+                    self._progress.wait(remaining)
+                    continue
+                # A follower's progress is the leader's: ask the store, briefly releasing the condition.
+                self._progress.release()
+                try:
+                    self._follow_quietly()
+                    time.sleep(min(WAIT_POLL_SECONDS, remaining))
+                finally:
+                    self._progress.acquire()
         return True
 
     def lag(self) -> tuple[int, float]:
@@ -134,6 +156,23 @@ class Applier:
         if behind <= 0:
             return 0, 0.0
         return behind, self.journal.age_of(self.applied + 1)
+
+    def _follow(self) -> int:
+        """Take the store's cursor as this process's progress (it is the leader's)."""
+        cursor = self.store.applied_through()
+        with self._progress:
+            # Never backwards: a store behind what was seen applied is one restored or wiped, which the
+            # leader brings up again; meanwhile what this process told its posters stays true of the journal.
+            if cursor is not None and cursor > self.applied:
+                self._applied = cursor
+                self._progress.notify_all()
+        return self.applied
+
+    def _follow_quietly(self) -> None:
+        try:
+            self._follow()
+        except StoreError as error:
+            self.last_error = str(error)
 
     def _starting_point(self) -> int:
         cursor = self.store.applied_through()

@@ -11,7 +11,9 @@ SQLite (a file in DATA_DIR, or memory) in WAL mode. All work is blocking: async 
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
+import os
 import shutil
 import sqlite3
 import threading
@@ -110,6 +112,9 @@ class Journal:
             ":memory:" if path is None else str(path), isolation_level=None, check_same_thread=False, timeout=30
         )
         self._lock = threading.Lock()
+        # Writers of other processes (API workers) queue on this file lock, which wakes the next one as soon as
+        # it is released; SQLite's own busy wait sleeps in steps of up to 100 ms.
+        self._writers = None if path is None else os.open(path.with_name(f"{path.name}.lock"), os.O_RDWR | os.O_CREAT)
         # Digests known to be in the journal since the last clearing, for this epoch: re-published triples
         # then cost no database lookup. Only ever holds digests that were committed.
         self._known: set[bytes] = set()
@@ -281,6 +286,9 @@ class Journal:
     def close(self) -> None:
         with self._lock:
             self._connection.close()
+            if self._writers is not None:
+                os.close(self._writers)
+                self._writers = None
 
     # --- plumbing --------------------------------------------------------------------------------------
 
@@ -306,14 +314,20 @@ class Journal:
     @contextmanager
     def _transaction(self) -> Iterator[sqlite3.Connection]:
         # IMMEDIATE takes the write lock up front, so even another process appending cannot fork the chain.
-        self._connection.execute("BEGIN IMMEDIATE")
+        if self._writers is not None:
+            fcntl.flock(self._writers, fcntl.LOCK_EX)
         try:
-            yield self._connection
-        except BaseException:
-            if self._connection.in_transaction:
-                self._connection.execute("ROLLBACK")
-            raise
-        self._connection.execute("COMMIT")
+            self._connection.execute("BEGIN IMMEDIATE")
+            try:
+                yield self._connection
+            except BaseException:
+                if self._connection.in_transaction:
+                    self._connection.execute("ROLLBACK")
+                raise
+            self._connection.execute("COMMIT")
+        finally:
+            if self._writers is not None:
+                fcntl.flock(self._writers, fcntl.LOCK_UN)
 
     def storage_ok(self) -> bool:
         """Whether the journal can take writes: True unless the last write failed for want of space and the

@@ -2,21 +2,23 @@
 bounded in-memory ring for a throwaway server), and the reader behind GET /logs/server.
 
 Records carry only what the code logs: request lines hold the id, method, path (never the query string),
-status, duration, user, client address and triples written; no token or body is ever logged. Entries read
-back also carry the reference backend's names for the same facts (`timestamp`, `actor`, `raw`), which its web
-UI reads.
+status, duration, user, client address and triples written; no token or body is ever logged. Each entry names
+the process that wrote it (`process`, its pid): with `segb serve --workers N` the workers share one file.
+Entries read back also carry the reference backend's names for the same facts (`timestamp`, `actor`, `raw`),
+which its web UI reads.
 """
 
 from __future__ import annotations
 
+import fcntl
 import json
 import logging
+import os
 import threading
 from collections import deque
 from collections.abc import Iterable, Iterator
-from logging.handlers import RotatingFileHandler
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 from segb_server.backend.config import Settings
 from segb_server.backend.services.clock import utc_iso
@@ -37,6 +39,7 @@ def entry_of(record: logging.LogRecord) -> Entry:
         "level": record.levelname,
         "logger": record.name,
         "message": record.getMessage(),
+        "process": record.process,
     }
     for name in FIELDS:
         value = record.__dict__.get(name)
@@ -57,9 +60,67 @@ def with_reference_fields(entry: Entry, raw: str) -> Entry:
     return {**entry, "timestamp": entry.get("time"), "actor": entry.get("user"), "raw": raw}
 
 
-class _JsonLines(RotatingFileHandler):
-    def format(self, record: logging.LogRecord) -> str:
-        return line_of(entry_of(record))
+class _JsonLines(logging.Handler):
+    """Lines appended to a size-rotated file that several processes may share: every write and rotation is made
+    under an flock on `<file>.lock`, and a process whose file another one rotated away opens the current one."""
+
+    def __init__(self, path: Path, *, max_bytes: int, backups: int) -> None:
+        super().__init__()
+        self.path = path
+        self.max_bytes = max_bytes
+        self.backups = backups
+        self._lock_file = os.open(path.with_name(f"{path.name}.lock"), os.O_RDWR | os.O_CREAT, 0o644)
+        self._stream: BinaryIO | None = None
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            data = (line_of(entry_of(record)) + "\n").encode("utf-8")
+            fcntl.flock(self._lock_file, fcntl.LOCK_EX)
+            try:
+                stream = self._current()
+                if self.backups and os.fstat(stream.fileno()).st_size + len(data) > self.max_bytes:
+                    self._rotate()
+                    stream = self._current()
+                stream.write(data)
+                stream.flush()
+            finally:
+                fcntl.flock(self._lock_file, fcntl.LOCK_UN)
+        except Exception:
+            self.handleError(record)
+
+    def _current(self) -> BinaryIO:
+        """The open file, reopened when the path names another file now (rotated by another process)."""
+        try:
+            on_disk = os.stat(self.path).st_ino
+        except FileNotFoundError:
+            on_disk = None
+        if self._stream is not None and os.fstat(self._stream.fileno()).st_ino != on_disk:
+            self._stream.close()
+            self._stream = None
+        if self._stream is None:
+            self._stream = self.path.open("ab")
+        return self._stream
+
+    def _rotate(self) -> None:
+        """server.jsonl → .1 → .2 …, the oldest beyond `backups` dropped (as logging's RotatingFileHandler)."""
+        for index in range(self.backups - 1, 0, -1):
+            older = self.path.with_name(f"{self.path.name}.{index}")
+            if older.exists():
+                older.replace(self.path.with_name(f"{self.path.name}.{index + 1}"))
+        self.path.replace(self.path.with_name(f"{self.path.name}.1"))
+
+    def close(self) -> None:
+        self.acquire()
+        try:
+            if self._stream is not None:
+                self._stream.close()
+                self._stream = None
+            if self._lock_file >= 0:
+                os.close(self._lock_file)
+                self._lock_file = -1
+        finally:
+            self.release()
+        super().close()
 
 
 class _Ring(logging.Handler):
@@ -89,7 +150,7 @@ class ServerLog:
             self.handler: logging.Handler = _Ring(RING_ENTRIES)
         else:
             path.parent.mkdir(parents=True, exist_ok=True)
-            self.handler = _JsonLines(path, maxBytes=max_bytes, backupCount=backups, encoding="utf-8")
+            self.handler = _JsonLines(path, max_bytes=max_bytes, backups=backups)
         self.handler.setLevel(level)
 
     @classmethod

@@ -28,7 +28,7 @@ from segb_server.backend.vocabulary import KINDS, PREFIXES, Kind, compact, kind_
 
 logger = logging.getLogger("segb.graph")
 
-INDEX_VERSION = "2"  # bump when the stored rows change meaning: the index is then built again
+INDEX_VERSION = "3"  # bump when the stored rows change meaning: the index is then built again
 RDF_TYPE = PREFIXES["rdf"] + "type"
 # Display name predicates, best first.
 LABELS = [PREFIXES["foaf"] + "firstName", PREFIXES["schema"] + "name", PREFIXES["rdfs"] + "label"]
@@ -53,9 +53,10 @@ CHUNK = 400  # IRIs per IN (…) list
 TABLES = ("graph_state", "graph_types", "graph_literals", "graph_links", "graph_nodes")
 SCHEMA = [
     # nodes: how many rows graph_nodes holds (nodes are only ever added, until a clearing), for the first view's
-    # total without counting them
+    # total without counting them; changed: the entry of the last change to what is drawn (for live viewers of
+    # every API process)
     "CREATE TABLE IF NOT EXISTS graph_state (id INTEGER PRIMARY KEY CHECK (id = 1), version TEXT, through INTEGER, "
-    "nodes INTEGER NOT NULL DEFAULT 0)",
+    "nodes INTEGER NOT NULL DEFAULT 0, changed INTEGER NOT NULL DEFAULT 0)",
     "CREATE TABLE IF NOT EXISTS graph_types (iri TEXT, type TEXT, PRIMARY KEY (iri, type)) WITHOUT ROWID",
     "CREATE TABLE IF NOT EXISTS graph_literals (iri TEXT, predicate TEXT, value TEXT, PRIMARY KEY (iri, predicate))"
     " WITHOUT ROWID",
@@ -93,7 +94,7 @@ class GraphIndex:
         self.db = ViewDatabase(path, SCHEMA)
         self.ready = False
         # The journal entry of the last change to what is drawn: live viewers fetch their view again when it
-        # moves (in memory: a viewer reconnecting to a restarted server is told to fetch again).
+        # moves. Kept in memory by the process that keeps the index, read by `follow` in the others.
         self.changed_through = 0
 
     # --- Projection ----------------------------------------------------------------------------------
@@ -102,6 +103,13 @@ class GraphIndex:
         row = self.db.reader().execute("SELECT version, through FROM graph_state").fetchone()
         return row[1] if row is not None and row[0] == INDEX_VERSION else None
 
+    def follow(self) -> int | None:
+        row = self.db.reader().execute("SELECT version, through, changed FROM graph_state").fetchone()
+        if row is None or row[0] != INDEX_VERSION:
+            return None
+        self.changed_through = row[2]
+        return int(row[1])
+
     def build(self, through: int) -> None:
         with self.db.writing() as connection:
             # Made again, not emptied: an index of an earlier version may have other columns.
@@ -109,7 +117,7 @@ class GraphIndex:
                 connection.execute(f"DROP TABLE IF EXISTS {table}")
             for statement in SCHEMA:
                 connection.execute(statement)
-            _set_through(connection, through)
+            _set_through(connection, through, changed=True)
             for batch in self.store.batches(20_000):
                 _store_facts(connection, batch)
             iris = [row[0] for row in connection.execute("SELECT iri FROM graph_nodes")]
@@ -122,7 +130,7 @@ class GraphIndex:
             touched = _store_facts(connection, quads)
             if touched:
                 _derive(connection, sorted(touched | _borrowers(connection, touched)))
-            _set_through(connection, through)
+            _set_through(connection, through, changed=bool(touched))
         if touched:
             self.changed_through = through
 
@@ -130,7 +138,7 @@ class GraphIndex:
         with self.db.writing() as connection:
             for table in TABLES:
                 connection.execute(f"DELETE FROM {table}")
-            _set_through(connection, through)
+            _set_through(connection, through, changed=True)
         self.changed_through = through
 
     def close(self) -> None:
@@ -481,11 +489,12 @@ def _matches(node: dict[str, object], needle: str) -> bool:
     return needle in str(node["label"]).casefold() or needle in str(node["id"]).casefold()
 
 
-def _set_through(connection: Any, through: int) -> None:
+def _set_through(connection: Any, through: int, *, changed: bool) -> None:
     connection.execute(
-        "INSERT INTO graph_state VALUES (1, ?, ?, 0) ON CONFLICT (id) DO UPDATE SET version = excluded.version, "
-        "through = excluded.through",
-        (INDEX_VERSION, through),
+        "INSERT INTO graph_state (id, version, through, changed) VALUES (1, ?, ?, ?) ON CONFLICT (id) DO UPDATE SET "
+        "version = excluded.version, through = excluded.through, changed = CASE WHEN ? THEN excluded.through "
+        "ELSE changed END",
+        (INDEX_VERSION, through, through, changed),
     )
 
 

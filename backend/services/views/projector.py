@@ -10,6 +10,10 @@ On a remote store the views of one batch are updated side by side, each in a wor
 work is mostly waiting for the store's answers (a round trip per query), so a batch takes as long as its
 slowest view rather than all of them added up. On the embedded store the same work is this process's own CPU,
 which the posts need too: the views take turns there.
+
+With several API processes on one data directory, only the one holding the leadership keeps the views (it is
+the one the applier's steps come from); the others follow the views it stores, which they read to answer.
+When the leader goes, the process that takes over catches the views up from the journal and keeps them.
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ from pyoxigraph import Quad, RdfFormat, parse
 
 from segb_server.backend.services.ingest.applier import Applied
 from segb_server.backend.services.ingest.journal import Journal
+from segb_server.backend.services.ops.leadership import Leadership
 from segb_server.backend.store.base import Store, StoreError
 
 logger = logging.getLogger("segb.views")
@@ -37,6 +42,7 @@ BATCH_STEPS = 200  # applied steps handled together: one update per view for a b
 # than MAX_REST_SECONDS: after a slow batch a long rest would let the next one grow, and the views fall behind.
 REST_RATIO = 1.0
 MAX_REST_SECONDS = 0.25
+FOLLOW_SECONDS = 0.25  # how often a following process reads how far the leader's views are
 
 
 class Projection(Protocol):
@@ -57,6 +63,10 @@ class Projection(Protocol):
     def clear(self, through: int) -> None:
         """The graph was emptied at `through`."""
 
+    def follow(self) -> int | None:
+        """Read the view as another process keeps it (never writing): the journal sequence it includes, or
+        None while it is not there to be read."""
+
 
 @dataclass
 class _Marker:
@@ -64,10 +74,13 @@ class _Marker:
 
 
 class Projector:
-    def __init__(self, store: Store, journal: Journal, projections: list[Projection]) -> None:
+    def __init__(
+        self, store: Store, journal: Journal, projections: list[Projection], leadership: Leadership | None = None
+    ) -> None:
         self.store = store
         self.journal = journal
         self.projections = projections
+        self.leadership = leadership or Leadership(None)
         self._queue: queue.Queue[Applied | _Marker | None] = queue.Queue()
         self._thread: threading.Thread | None = None
         self._stopping = threading.Event()  # ends retry waits too: a store that never returns must not hold shutdown
@@ -119,6 +132,10 @@ class Projector:
     # --- the thread ----------------------------------------------------------------------------------
 
     def _run(self) -> None:
+        while not self.leadership.held:  # the applier's thread takes the lead when it is free
+            self._follow()
+            if self._stopping.wait(FOLLOW_SECONDS):
+                return
         while True:
             try:
                 self._prepare_all()
@@ -163,6 +180,19 @@ class Projector:
                     projection.build(through)
                 self._advance(through)
                 return True
+
+    def _follow(self) -> None:
+        try:
+            stored = [projection.follow() for projection in self.projections]
+        except Exception as error:  # e.g. the leader is building a view of another version just now
+            self.last_error = str(error)
+            return
+        self.last_error = None
+        for projection, through in zip(self.projections, stored, strict=True):
+            projection.ready = through is not None
+        known = [through for through in stored if through is not None]
+        if len(known) == len(stored):
+            self._advance(min(known))
 
     def _prepare_all(self) -> None:
         current = self.store.applied_through() or 0

@@ -86,6 +86,10 @@ class ReportProjection:
         self.rows.create(self.layout, fresh=False)
         return through
 
+    def follow(self) -> int | None:
+        fingerprint, through = self.rows.state(self.name)
+        return through if fingerprint == self.fingerprint else None
+
     def build(self, through: int) -> None:
         self.rows.create(self.layout, fresh=True)
         rows = self._evaluate(None)

@@ -1,0 +1,121 @@
+"""Running the API and the UI: in one process (the default), or the API in N worker processes on one port.
+
+`segb serve --workers N`: uvicorn's supervisor binds the port once and runs N worker processes on it (replacing
+any that dies); the kernel spreads connections over them. Each worker builds its app from the environment, so
+the settings given on the command line are handed down as environment variables. Every worker accepts posts
+(the journal's SQLite transactions keep one hash chain) and serves reads; one of them, the holder of the
+leadership lock (services/ops/leadership.py), also applies the journal and keeps the views current. Only a
+remote store can be shared so: the embedded store is opened by one process.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import multiprocessing
+import os
+import signal
+from collections.abc import Iterator, Mapping
+from typing import Any
+
+import uvicorn
+
+from segb_server.backend.config import Settings
+
+APP_FACTORY = "segb_server.backend.api.app:create_app"
+SHARED_STORES = ("virtuoso", "sparql")
+# Live event streams never end by themselves: on shutdown they are closed after this long instead of holding
+# the exit. A post cut so keeps nothing: its journal transaction never committed.
+GRACEFUL_SHUTDOWN_SECONDS = 5
+
+
+class WorkersRefused(ValueError):
+    """The settings cannot be served by several processes."""
+
+
+def check_shareable(settings: Settings, *, demo: bool) -> None:
+    if settings.api_workers > 1 and settings.store not in SHARED_STORES:
+        raise WorkersRefused(
+            f"API_WORKERS={settings.api_workers} needs a store the workers can share (STORE=virtuoso or sparql); "
+            f"the {settings.store} store is opened by one process"
+        )
+    if settings.api_workers > 1 and demo:
+        raise WorkersRefused("--demo loads the demo in one process: run one worker, or `segb demo` once it is up")
+
+
+def hand_down(overrides: Mapping[str, object]) -> None:
+    """Settings from the command line, as the environment the worker processes build theirs from."""
+    for name, value in overrides.items():
+        os.environ[name.upper()] = str(value)
+
+
+def serve(settings: Settings, *, api: bool, ui: bool, demo: bool) -> None:
+    """The API and/or the UI in this process, until Ctrl-C or SIGTERM stops both."""
+    from segb_server.backend.api.app import create_app
+
+    configs = []
+    if api:
+        configs.append(uvicorn.Config(create_app(settings, demo=demo), port=settings.api_port, **_options(settings)))
+    if ui:
+        configs.append(_ui_config(settings))
+    # uvicorn's own choice of loop (uvloop when installed), which `asyncio.run` would bypass.
+    with asyncio.Runner(loop_factory=configs[0].get_loop_factory()) as runner:
+        runner.run(_serve_together([_QuietServer(config) for config in configs]))
+
+
+def serve_api_workers(settings: Settings, *, with_ui: bool) -> None:
+    """The API in `settings.api_workers` processes (and the UI in a process of its own) until stopped."""
+    ui = None
+    if with_ui:
+        ui = multiprocessing.get_context("spawn").Process(target=_serve_ui, name="segb-ui", daemon=True)
+        ui.start()
+    try:
+        workers = settings.api_workers
+        uvicorn.run(APP_FACTORY, factory=True, workers=workers, port=settings.api_port, **_options(settings))
+    finally:
+        if ui is not None:
+            ui.terminate()
+            ui.join(timeout=10)
+
+
+def _serve_ui() -> None:
+    uvicorn.Server(_ui_config(Settings())).run()
+
+
+def _ui_config(settings: Settings) -> uvicorn.Config:
+    from segb_server.ui.app import create_ui_app
+
+    return uvicorn.Config(create_ui_app(settings), port=settings.ui_port, **_options(settings))
+
+
+def _options(settings: Settings) -> dict[str, Any]:
+    # No uvicorn access log: the API and UI log one line per request themselves. Only proxies in
+    # FORWARDED_ALLOW_IPS may say the browser came over HTTPS (X-Forwarded-Proto): then the session and CSRF
+    # cookies are Secure behind a TLS-terminating proxy.
+    return {
+        "host": settings.host,
+        "access_log": False,
+        "proxy_headers": True,
+        "forwarded_allow_ips": settings.forwarded_allow_ips,
+        "timeout_graceful_shutdown": GRACEFUL_SHUTDOWN_SECONDS,
+    }
+
+
+class _QuietServer(uvicorn.Server):
+    """Leaves signals to `_serve_together`, which stops every server on Ctrl-C, not just the last one."""
+
+    @contextlib.contextmanager
+    def capture_signals(self) -> Iterator[None]:
+        yield
+
+
+async def _serve_together(servers: list[uvicorn.Server]) -> None:
+    loop = asyncio.get_running_loop()
+
+    def stop() -> None:
+        for server in servers:
+            server.should_exit = True
+
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        loop.add_signal_handler(signum, stop)
+    await asyncio.gather(*(server.serve() for server in servers))

@@ -1,0 +1,251 @@
+"""`segb serve --workers N` on a real Virtuoso: several API processes on one port and one data directory.
+
+Robots post to whichever worker the kernel hands their connection; afterwards every acknowledged triple is
+stored, the journal is one valid hash chain with exactly one receipt per post, concurrent shared-context
+resolutions agree, and a live report stream on one worker hears of posts taken by the others. Then the
+leader is killed and another worker takes over applying."""
+
+from __future__ import annotations
+
+import contextlib
+import http.client
+import json
+import os
+import signal
+import subprocess
+import threading
+import time
+import uuid
+from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from urllib.parse import urlsplit
+
+import httpx
+import pytest
+
+from tests.cli.test_cli import SEGB, clean_env, segb, wait_for
+from tests.faults.test_crashes import all_receipts, caught_up, check_consistent, post_turtle
+from tests.support.net import free_port
+from tests.support.scenarios import lobby
+from tests.support.virtuoso import VirtuosoProcess
+
+pytestmark = pytest.mark.virtuoso
+
+ROBOTS = 16
+POSTS_PER_ROBOT = 100
+
+
+class Workers:
+    """`segb serve --only api --workers N` on Virtuoso, as a process group of its own."""
+
+    def __init__(self, virtuoso: VirtuosoProcess, data_dir: Path, workers: int, *, ui: bool = False) -> None:
+        self.port, self.ui_port = free_port(), free_port()
+        self.url = f"http://127.0.0.1:{self.port}"
+        self.data_dir = data_dir
+        self.env = {
+            "STORE": "virtuoso",
+            "VIRTUOSO_ENDPOINT": virtuoso.endpoint,
+            "VIRTUOSO_USER": virtuoso.user,
+            "VIRTUOSO_PASSWORD": virtuoso.password,
+            "VIRTUOSO_GRAPH_URI": f"http://amor-segb/test/{uuid.uuid4().hex}",
+        }
+        command = ["serve", *([] if ui else ["--only", "api"]), "--workers", str(workers), "--data-dir", str(data_dir)]
+        self.log = data_dir.with_name(f"{data_dir.name}.log")  # a file: a pipe nobody reads would stall the server
+        with self.log.open("wb") as log:
+            self.process = subprocess.Popen(
+                [*SEGB, *command, "--api-port", str(self.port), "--ui-port", str(self.ui_port)],
+                env=clean_env(self.env),
+                stdout=subprocess.DEVNULL,
+                stderr=log,
+                start_new_session=True,
+            )
+        wait_for(f"{self.url}/healthz/live", timeout=60)
+
+    def leader(self) -> int:
+        return int((self.data_dir / "leader.lock").read_text().strip())
+
+    def stop(self) -> str:
+        if self.process.poll() is None:
+            self.process.send_signal(signal.SIGTERM)
+            try:
+                self.process.wait(timeout=60)
+            except subprocess.TimeoutExpired:
+                os.killpg(self.process.pid, signal.SIGKILL)
+                self.process.wait()
+        return self.log.read_text(errors="replace")
+
+
+@pytest.fixture
+def start_workers(virtuoso: VirtuosoProcess, tmp_path: Path) -> Iterator[object]:
+    started: list[Workers] = []
+
+    def start(workers: int, ui: bool = False) -> Workers:
+        started.append(Workers(virtuoso, tmp_path / f"data-{len(started)}", workers, ui=ui))
+        return started[-1]
+
+    yield start
+    for running in started:
+        running.stop()
+
+
+def post_all(url: str) -> dict[str, str]:
+    """16 robots, 100 distinct posts each, every one on a new connection (so spread over the workers)."""
+    acknowledged: dict[str, str] = {}
+    failures: list[str] = []
+    lock = threading.Lock()
+
+    def robot(number: int) -> None:
+        for post in range(POSTS_PER_ROBOT):
+            turtle = post_turtle(number, post)
+            status, answer = post_json(url, "/ttl", {"ttl_content": turtle, "user": f"robot{number}"})
+            with lock:
+                if status == 201:
+                    acknowledged[answer["log_id"]] = turtle
+                else:
+                    failures.append(f"{status} {answer}")
+
+    with ThreadPoolExecutor(ROBOTS) as pool:
+        list(pool.map(robot, range(ROBOTS)))
+    assert failures == []
+    return acknowledged
+
+
+def post_json(
+    url: str, path: str, body: dict[str, object], headers: dict[str, str] | None = None
+) -> tuple[int, dict[str, object]]:
+    """One POST on a connection of its own (as the PyPI client makes them), so the kernel picks the worker;
+    http.client, because a new httpx client per request costs the test more CPU than the server's work."""
+    address = urlsplit(url)
+    connection = http.client.HTTPConnection(address.hostname or "", address.port, timeout=60)
+    try:
+        sent = {"Content-Type": "application/json", **(headers or {})}
+        connection.request("POST", path, body=json.dumps(body), headers=sent)
+        answer = connection.getresponse()
+        return answer.status, json.loads(answer.read())
+    finally:
+        connection.close()
+
+
+def processes_serving(url: str, path: str, request_ids: str = "") -> set[int]:
+    """The worker processes that logged a request to `path` (whose id starts with `request_ids`)."""
+    entries = httpx.get(f"{url}/logs/server", params={"limit": 2000, "contains": path}, timeout=30).json()["entries"]
+    return {
+        entry["process"]
+        for entry in entries
+        if entry.get("path") == path and str(entry.get("request_id", "")).startswith(request_ids)
+    }
+
+
+@pytest.mark.parametrize("workers", [2, 4])
+def test_robots_posting_to_several_workers_make_one_chain_and_lose_nothing(start_workers: object, workers: int) -> None:
+    server = start_workers(workers)  # type: ignore[operator]
+    acknowledged = post_all(server.url)
+    assert len(acknowledged) == ROBOTS * POSTS_PER_ROBOT
+    caught_up(server.url)
+    check_consistent(server.url, acknowledged)  # stored, receipted, and the chain verifies deep
+    receipts = list(all_receipts(server.url))
+    assert sorted(receipt["sequence"] for receipt in receipts) == list(range(1, len(acknowledged) + 1))
+    assert {receipt["log_id"] for receipt in receipts} == set(acknowledged)  # one receipt per post, no other
+    assert len(processes_serving(server.url, "/ttl")) >= 2, "every post went to one worker: nothing was shared"
+
+
+def test_concurrent_resolutions_across_workers_give_one_context(start_workers: object) -> None:
+    """Rounds of 16 simultaneous resolutions of one observation (each round a new one), until a round was
+    served by more than one worker (the kernel picks; a round is too quick to be always spread)."""
+    server = start_workers(2)  # type: ignore[operator]
+    spread_rounds = 0
+    for round_number in range(20):
+        body = {
+            "event_kind": "human_utterance",
+            "observed_at": f"2026-05-04T10:{round_number:02d}:00+00:00",
+            "subject_uri": "https://example.org/people/maria",
+            "modality": "speech",
+            "text": f"Good morning, robot! ({round_number})",
+        }
+
+        def resolve(call: int, body: dict[str, object] = body, round_number: int = round_number) -> str:
+            request_id = f"round{round_number}-{call}"
+            status, answer = post_json(server.url, "/shared-context/resolve", body, {"X-Request-ID": request_id})
+            assert status == 200, answer
+            return str(answer["shared_context_uri"])
+
+        with ThreadPoolExecutor(16) as pool:
+            uris = set(pool.map(resolve, range(16)))
+        assert len(uris) == 1, f"round {round_number}: {uris}"
+        if len(processes_serving(server.url, "/shared-context/resolve", f"round{round_number}-")) >= 2:
+            spread_rounds += 1
+            if spread_rounds >= 3:
+                break
+    assert spread_rounds >= 3, "the resolutions were never spread over the workers"
+
+
+def test_a_report_stream_hears_of_posts_taken_by_other_workers_and_the_lead_moves_on(start_workers: object) -> None:
+    server = start_workers(2)  # type: ignore[operator]
+    caught_up(server.url)
+    heard: set[str] = set()
+    listening = threading.Event()
+
+    def listen() -> None:
+        # Ends with an error when its worker is killed below, or the server stops: what it heard is kept.
+        with (
+            contextlib.suppress(httpx.HTTPError),
+            httpx.stream(
+                "GET", f"{server.url}/reports/stream", params={"report": "conversations"}, timeout=120
+            ) as stream,
+        ):
+            listening.set()
+            for line in stream.iter_lines():
+                if line.startswith("data:") and "units" in line:
+                    heard.update(json.loads(line[5:])["units"])
+
+    threading.Thread(target=listen, daemon=True).start()
+    assert listening.wait(30)
+    lobby().publish_all(server.url)  # the PyPI client: a new connection per publish
+    answer = httpx.get(f"{server.url}/reports/conversations", params={"limit": 1000}, timeout=30)
+    messages = {str(row["message"]) for row in answer.json()["rows"]}
+    assert messages, "the conversations report is empty"
+    deadline = time.monotonic() + 10
+    unheard = messages
+    while unheard and time.monotonic() < deadline:
+        time.sleep(0.1)
+        unheard = {message for message in messages if not any(message in unit for unit in set(heard))}
+    assert not unheard, f"the stream never mentioned {sorted(unheard)} (heard {sorted(heard)})"
+    assert len(processes_serving(server.url, "/ttl")) >= 2, "every publish went to one worker"
+
+    # The leader dies (SIGKILL): a follower takes the lock over and applies what is posted next.
+    leader = server.leader()
+    os.kill(leader, signal.SIGKILL)
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline and server.leader() == leader:
+        time.sleep(0.2)
+    assert server.leader() != leader, "no worker took the lead over"
+    turtle = post_turtle(99, 0)
+    answer = httpx.post(f"{server.url}/ttl", json={"ttl_content": turtle, "user": "late"}, timeout=30)
+    assert answer.status_code == 201, answer.text
+    caught_up(server.url)
+    check_consistent(server.url, {answer.json()["log_id"]: turtle})
+
+
+def test_the_ui_runs_beside_the_workers_and_a_rebuild_waits_for_them_to_stop(start_workers: object) -> None:
+    server = start_workers(2, ui=True)  # type: ignore[operator]
+    page = wait_for(f"http://127.0.0.1:{server.ui_port}/health")
+    assert "Ready" in page.text
+    refused = segb("rebuild", "--store", "virtuoso", "--data-dir", str(server.data_dir), env=server.env)
+    assert refused.returncode == 2
+    assert "a server is running" in refused.stderr
+
+
+@pytest.mark.parametrize(
+    ("arguments", "problem"),
+    [
+        (["--store", "oxigraph"], "needs a store the workers can share (STORE=virtuoso or sparql)"),
+        (["--store", "memory"], "needs a store the workers can share"),
+        (["--store", "virtuoso", "--demo"], "--demo loads the demo in one process"),
+    ],
+)
+def test_workers_are_refused_where_they_cannot_share(tmp_path: Path, arguments: list[str], problem: str) -> None:
+    refused = segb("serve", "--workers", "2", "--data-dir", str(tmp_path), *arguments)
+    assert refused.returncode == 2
+    assert problem in refused.stderr
+    assert not (tmp_path / "leader.lock").exists()  # refused before anything was opened
