@@ -33,6 +33,7 @@ from tests.support.virtuoso import VirtuosoProcess
 pytestmark = pytest.mark.virtuoso
 
 ROBOTS = 16
+EX = "https://example.org/workers/"
 POSTS_PER_ROBOT = 100
 
 
@@ -127,6 +128,19 @@ def post_json(
         connection.close()
 
 
+def post_message(url: str, message: str, round_number: int) -> int:
+    """A robot's message, the least the conversations report shows, on a connection of its own."""
+    activity = f"{message}/activity"
+    turtle = (
+        f'<{message}> a <http://schema.org/Message> ; <http://schema.org/text> "hello"@en ; '
+        f"<http://www.w3.org/ns/prov#wasGeneratedBy> <{activity}> .\n"
+        f"<{activity}> <http://www.gsi.upm.es/ontologies/segb/ns#wasPerformedBy> <{EX}robot/ari> .\n"
+    )
+    request_id = f"message-{round_number}-{message.rsplit('-', 1)[-1]}"
+    status, _ = post_json(url, "/ttl", {"ttl_content": turtle, "user": "ari"}, {"X-Request-ID": request_id})
+    return status
+
+
 def processes_serving(url: str, path: str, request_ids: str = "") -> set[int]:
     """The worker processes that logged a request to `path` (whose id starts with `request_ids`)."""
     entries = httpx.get(f"{url}/logs/server", params={"limit": 2000, "contains": path}, timeout=30).json()["entries"]
@@ -201,17 +215,26 @@ def test_a_report_stream_hears_of_posts_taken_by_other_workers_and_the_lead_move
 
     threading.Thread(target=listen, daemon=True).start()
     assert listening.wait(30)
-    lobby().publish_all(server.url)  # the PyPI client: a new connection per publish
-    answer = httpx.get(f"{server.url}/reports/conversations", params={"limit": 1000}, timeout=30)
-    messages = {str(row["message"]) for row in answer.json()["rows"]}
-    assert messages, "the conversations report is empty"
+    lobby().publish_all(server.url)  # the PyPI client, through whichever workers
+    sent: set[str] = set()
+    for round_number in range(10):  # rounds of 16 simultaneous posts, until they were spread over the workers
+        messages = [f"{EX}message/{round_number}-{call}" for call in range(16)]
+        with ThreadPoolExecutor(16) as pool:
+            statuses = list(pool.map(post_message, [server.url] * 16, messages, [round_number] * 16))
+        assert statuses == [201] * 16
+        sent.update(messages)
+        if len(processes_serving(server.url, "/ttl", f"message-{round_number}-")) >= 2:
+            break
+    else:
+        raise AssertionError("the posts were never spread over the workers")
     deadline = time.monotonic() + 10
-    unheard = messages
+    unheard = sent
     while unheard and time.monotonic() < deadline:
         time.sleep(0.1)
-        unheard = {message for message in messages if not any(message in unit for unit in set(heard))}
-    assert not unheard, f"the stream never mentioned {sorted(unheard)} (heard {sorted(heard)})"
-    assert len(processes_serving(server.url, "/ttl")) >= 2, "every publish went to one worker"
+        unheard = {message for message in sent if not any(message in unit for unit in set(heard))}
+    assert not unheard, f"the stream never mentioned {sorted(unheard)[:5]}"
+    conversations = httpx.get(f"{server.url}/reports/conversations", params={"limit": 1000}, timeout=30).json()
+    assert sent <= {str(row["message"]) for row in conversations["rows"]}
 
     # The leader dies (SIGKILL): a follower takes the lock over and applies what is posted next.
     leader = server.leader()

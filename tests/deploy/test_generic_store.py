@@ -1,0 +1,84 @@
+"""The generic SPARQL 1.1 adapter (STORE=sparql) on a second real store: Oxigraph's own server (`oxigraph serve`,
+the `oxigraph` package on PyPI), run as a process of its own, with two API workers in front of it."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from collections.abc import Iterator
+from pathlib import Path
+
+import httpx
+import pytest
+
+from tests.api.test_reports_differential import REPORTS, bound_text, full_evaluation, report_rows, same_rows
+from tests.cli.test_cli import SEGB, clean_env, wait_for
+from tests.deploy.test_workers import post_json, processes_serving
+from tests.faults.test_crashes import caught_up, check_consistent, post_turtle
+from tests.support.net import free_port
+from tests.support.scenarios import lobby
+
+
+@pytest.fixture
+def oxigraph_server(tmp_path: Path) -> Iterator[str]:
+    binary = shutil.which("oxigraph")
+    assert binary, "the oxigraph server is installed from requirements-test.lock"
+    port = free_port()
+    process = subprocess.Popen(
+        [binary, "serve", "--location", str(tmp_path / "oxigraph-server"), "--bind", f"127.0.0.1:{port}"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    url = f"http://127.0.0.1:{port}"
+    try:
+        wait_for(f"{url}/query?query=ASK%7B%7D", timeout=30)
+        yield url
+    finally:
+        process.terminate()
+        process.wait(timeout=30)
+
+
+@pytest.fixture
+def api_on_oxigraph_server(oxigraph_server: str, tmp_path: Path) -> Iterator[str]:
+    port = free_port()
+    env = {
+        "STORE": "sparql",
+        "SPARQL_QUERY_ENDPOINT": f"{oxigraph_server}/query",
+        "SPARQL_UPDATE_ENDPOINT": f"{oxigraph_server}/update",
+    }
+    command = ["serve", "--only", "api", "--workers", "2", "--data-dir", str(tmp_path / "data")]
+    with (tmp_path / "api.log").open("wb") as log:
+        process = subprocess.Popen(
+            [*SEGB, *command, "--api-port", str(port)], env=clean_env(env), stdout=subprocess.DEVNULL, stderr=log
+        )
+    url = f"http://127.0.0.1:{port}"
+    try:
+        wait_for(f"{url}/healthz/live", timeout=60)
+        yield url
+    finally:
+        process.terminate()
+        process.wait(timeout=60)
+
+
+def test_robots_reports_and_graph_work_on_oxigraph_server_behind_two_workers(api_on_oxigraph_server: str) -> None:
+    url = api_on_oxigraph_server
+    assert httpx.get(f"{url}/healthz/ready", timeout=10).json() == {"ready": True, "sparql": True}
+    acknowledged: dict[str, str] = {}
+    for post in range(60):
+        turtle = post_turtle(7, post)
+        status, answer = post_json(url, "/ttl", {"ttl_content": turtle, "user": "robot7"})
+        assert status == 201, answer
+        acknowledged[str(answer["log_id"])] = turtle
+    lobby().publish_all(url)  # the PyPI client
+    caught_up(url)
+    check_consistent(url, acknowledged)
+    assert len(processes_serving(url, "/ttl")) >= 2
+
+    # Every report, kept as rows by the leading worker and read by either, equals its query run on the store.
+    for query in REPORTS:
+        name = query.name.removeprefix("reports/")
+        served = report_rows(url, name, {}, page=20)
+        same_rows(served, full_evaluation(url, bound_text(query.name, {})), [], name)
+        assert httpx.get(f"{url}/reports/{name}", timeout=30).json()["served_from"] == "rows"
+    graph = httpx.get(f"{url}/graph", timeout=30)
+    assert graph.status_code == 200 and graph.json()["nodes"]
