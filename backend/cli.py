@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import logging
 import sys
 from collections.abc import Iterator, Sequence
 from pathlib import Path
@@ -139,10 +138,16 @@ def _settings(args: argparse.Namespace, *names: str) -> Settings:
 def _serve(args: argparse.Namespace) -> int:
     names = ("host", "api_port", "ui_port", "backend_url", "api_workers")
     settings = _settings(args, *names)
-    logging.basicConfig(level=settings.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
-    # httpx logs every request at INFO; the store monitor and the UI make many, and the API logs its own.
-    logging.getLogger("httpx").setLevel(max(logging.WARNING, logging.getLevelName(settings.log_level)))
-    from segb_server.backend.serving import WorkersRefused, check_shareable, hand_down, serve, serve_api_workers
+    from segb_server.backend.serving import (
+        WorkersRefused,
+        check_shareable,
+        configure_logging,
+        hand_down,
+        serve,
+        serve_api_workers,
+    )
+
+    configure_logging(settings)
 
     if args.demo and args.only == "ui":
         return _fail("--demo fills the API's store: drop --only ui")

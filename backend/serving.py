@@ -12,21 +12,40 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 import multiprocessing
 import os
 import signal
 from collections.abc import Iterator, Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import uvicorn
 
 from segb_server.backend.config import Settings
 
-APP_FACTORY = "segb_server.backend.api.app:create_app"
+if TYPE_CHECKING:
+    from fastapi import FastAPI
+
+APP_FACTORY = "segb_server.backend.serving:worker_app"
 SHARED_STORES = ("virtuoso", "sparql")
 # Live event streams never end by themselves: on shutdown they are closed after this long instead of holding
 # the exit. A post cut so keeps nothing: its journal transaction never committed.
 GRACEFUL_SHUTDOWN_SECONDS = 5
+
+
+def configure_logging(settings: Settings) -> None:
+    logging.basicConfig(level=settings.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    # httpx logs every request at INFO; the store monitor and the UI make many, and the API logs its own.
+    logging.getLogger("httpx").setLevel(max(logging.WARNING, logging.getLevelName(settings.log_level)))
+
+
+def worker_app() -> FastAPI:
+    """One worker process's app (uvicorn imports this by name in each), logging as `segb serve` does."""
+    from segb_server.backend.api.app import create_app
+
+    settings = Settings()
+    configure_logging(settings)
+    return create_app(settings)
 
 
 class WorkersRefused(ValueError):
@@ -79,7 +98,9 @@ def serve_api_workers(settings: Settings, *, with_ui: bool) -> None:
 
 
 def _serve_ui() -> None:
-    uvicorn.Server(_ui_config(Settings())).run()
+    settings = Settings()
+    configure_logging(settings)
+    uvicorn.Server(_ui_config(settings)).run()
 
 
 def _ui_config(settings: Settings) -> uvicorn.Config:

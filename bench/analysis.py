@@ -3,6 +3,8 @@ size mean, Virtuoso's floor, memory. Figures in them come from the run; the reas
 
 from __future__ import annotations
 
+import textwrap
+
 from bench.breakdown import MAINTENANCE, STEPS
 from bench.crosscheck import UNCHECKED, check_of
 from bench.freshness import SteadyLag
@@ -108,6 +110,28 @@ def robots_notes(embedded: ManyRobots | None, floor: ManyRobots | None) -> list[
         + (f" ({drain:.0f} s here)." if drain is not None else "."),
         "",
     ]
+
+
+WORKERS_LABEL = "API worker"  # in the names of the "workers" section's rows
+
+
+def workers_notes(robots: dict[str, ManyRobots]) -> list[str]:
+    """What more API processes bought on this machine, from the rows of the "workers" section."""
+    rows = {name: run for name, run in robots.items() if WORKERS_LABEL in name}
+    if len(rows) < 2:
+        return []
+    best_name, best = max(rows.items(), key=lambda item: item[1].posts_per_second)
+    one = next(iter(rows.values()))
+    text = (
+        f"**API workers on Virtuoso** (`API_WORKERS`, the rows *{'*, *'.join(rows)}*): the best was *{best_name}* "
+        f"at {best.posts_per_second:.0f} posts/s (p99 {best.latency.p99:,.0f} ms), against "
+        f"{one.posts_per_second:.0f} posts/s (p99 {one.latency.p99:,.0f} ms) for one process. This machine has 2 "
+        "cores, and the 16 client threads, Virtuoso and every worker share them, so more workers mostly move the "
+        "queue from one place to another: Virtuoso's own CPU per post (the applier's writes and the views' "
+        "queries) is the limit here, as the capacity model in docs/scaling.md shows. Each row is one run, and "
+        "whole runs differ by up to a factor of 2 here."
+    )
+    return [*textwrap.wrap(text, 110, break_on_hyphens=False), ""]
 
 
 def steady_notes(steady: dict[str, SteadyLag]) -> list[str]:

@@ -157,6 +157,7 @@ def _robots_section(f: Figures) -> list[str]:
              for name, lag in lagged],
         )  # fmt: skip
     lines += analysis.robots_notes(f.robots.get("embedded"), f.robots_floor)
+    lines += analysis.workers_notes(f.robots)
     return lines
 
 
