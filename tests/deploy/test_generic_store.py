@@ -13,8 +13,8 @@ import pytest
 
 from tests.api.test_reports_differential import REPORTS, bound_text, full_evaluation, report_rows, same_rows
 from tests.cli.test_cli import SEGB, clean_env, wait_for
-from tests.deploy.test_workers import post_json, processes_serving
-from tests.faults.test_crashes import caught_up, check_consistent, post_turtle
+from tests.deploy.test_workers import post_until_spread
+from tests.faults.test_crashes import caught_up, check_consistent
 from tests.support.net import free_port
 from tests.support.scenarios import lobby
 
@@ -63,16 +63,10 @@ def api_on_oxigraph_server(oxigraph_server: str, tmp_path: Path) -> Iterator[str
 def test_robots_reports_and_graph_work_on_oxigraph_server_behind_two_workers(api_on_oxigraph_server: str) -> None:
     url = api_on_oxigraph_server
     assert httpx.get(f"{url}/healthz/ready", timeout=10).json() == {"ready": True, "sparql": True}
-    acknowledged: dict[str, str] = {}
-    for post in range(60):
-        turtle = post_turtle(7, post)
-        status, answer = post_json(url, "/ttl", {"ttl_content": turtle, "user": "robot7"})
-        assert status == 201, answer
-        acknowledged[str(answer["log_id"])] = turtle
+    acknowledged = post_until_spread(url, robot=7)  # both workers take posts
     lobby().publish_all(url)  # the PyPI client
     caught_up(url)
     check_consistent(url, acknowledged)
-    assert len(processes_serving(url, "/ttl")) >= 2
 
     # Every report, kept as rows by the leading worker and read by either, equals its query run on the store.
     for query in REPORTS:

@@ -128,6 +128,29 @@ def post_json(
         connection.close()
 
 
+def post_until_spread(url: str, robot: int, rounds: int = 10) -> dict[str, str]:
+    """Rounds of 16 simultaneous posts by `robot`, until one round was served by more than one worker (the
+    kernel picks; posts that come one at a time tend to find the same idle worker). Returns what was
+    acknowledged: log_id → the Turtle sent."""
+    acknowledged: dict[str, str] = {}
+
+    def post(number: int, round_number: int) -> None:
+        turtle = post_turtle(robot, number)
+        request_id = f"spread-{robot}-{round_number}-{number}"
+        body = {"ttl_content": turtle, "user": f"robot{robot}"}
+        status, answer = post_json(url, "/ttl", body, {"X-Request-ID": request_id})
+        assert status == 201, answer
+        acknowledged[str(answer["log_id"])] = turtle
+
+    for round_number in range(rounds):
+        numbers = range(round_number * 16, (round_number + 1) * 16)
+        with ThreadPoolExecutor(16) as pool:
+            list(pool.map(post, numbers, [round_number] * 16))
+        if len(processes_serving(url, "/ttl", f"spread-{robot}-{round_number}-")) >= 2:
+            return acknowledged
+    raise AssertionError("the posts were never spread over the workers")
+
+
 def post_message(url: str, message: str, round_number: int) -> int:
     """A robot's message, the least the conversations report shows, on a connection of its own."""
     activity = f"{message}/activity"
