@@ -172,7 +172,7 @@ def units_touched(
     for pattern in plan.patterns:
         if pattern in ignored:
             continue
-        matches = [q for p in pattern.predicates for q in by_predicate.get(p, []) if _fits(pattern, q)]
+        matches = [q for p in pattern.predicates for q in by_predicate.get(p, []) if _fits(plan, pattern, q)]
         if not matches:
             continue
         bindings = [_bind(pattern, q) for q in matches]
@@ -202,10 +202,16 @@ def units_touched(
     return units
 
 
-def _fits(pattern: Pattern, quad: Quad) -> bool:
-    """A triple fits a pattern when its terms equal the pattern's constants."""
+def _fits(plan: ReportPlan, pattern: Pattern, quad: Quad) -> bool:
+    """A triple fits a pattern when its terms equal the pattern's constants, and are among the values its group
+    allows a variable (e.g. `?target a ?class` where `VALUES ?class { … }` lists the classes of people: the
+    types of every other resource a post describes touch no key through it)."""
     for position, term in ((pattern.subject, quad.subject), (pattern.object, quad.object)):
-        if not position.startswith("?") and position != term_text(term):
+        if position.startswith("?"):
+            allowed = plan.narrowed.get((pattern.group, position))
+            if allowed is not None and term_text(term) not in allowed:
+                return False
+        elif position != term_text(term):
             return False
     return True
 
@@ -286,6 +292,7 @@ def _facet_plan(plan: ReportPlan, facet: FacetFilter) -> ReportPlan:
         patterns=patterns,
         guaranteed={group: {group} for group in groups},
         mandatory={group: [p for p in patterns if p.group == group] for group in groups},
+        narrowed=plan.narrowed,
     )
 
 

@@ -91,6 +91,9 @@ class ReportPlan:
     group_by: list[str] = field(default_factory=list)  # aggregate reports: the group variables
     branches: dict[int, int] = field(default_factory=dict)  # a UNION branch's or OPTIONAL's group → its parent
     aliases: list[tuple[str, str]] = field(default_factory=list)  # (?x, ?a): BIND made ?x the value of ?a
+    # (group, ?x) → the only IRIs ?x may be in that group (its `VALUES ?x { … }` or `FILTER (?x IN (…))`): a
+    # triple with another term there matches none of the group's patterns, so it touches no key through them
+    narrowed: dict[tuple[int, str], frozenset[str]] = field(default_factory=dict)
 
     @property
     def is_aggregate(self) -> bool:
@@ -141,6 +144,7 @@ def plan_report(query: CatalogQuery) -> ReportPlan:
         group_by=walker.group_by,
         branches=walker.branches,
         aliases=walker.aliases,
+        narrowed=walker.narrowed,
     )
     if plan.is_aggregate:
         if not all(name in plan.group_by or name in {a.output for a in plan.aggregates} for name in columns):
@@ -169,6 +173,7 @@ class _Walker:
         self._renamed: dict[str, str] = {}  # __agg_1__ → humanName
         self.branches: dict[int, int] = {}
         self.aliases: list[tuple[str, str]] = []
+        self.narrowed: dict[tuple[int, str], frozenset[str]] = {}
         self._fresh = itertools.count()
 
     def new_group(self, parent: int | None) -> int:
@@ -272,6 +277,8 @@ class _Walker:
 
     def _filter(self, expression: object, group: int) -> None:
         for conjunct in _conjuncts(expression):
+            if (listed := _iri_list(conjunct)) is not None:
+                self.narrowed[(group, listed[0])] = listed[1]
             switched = _switched_filter(conjunct)
             if switched is None:
                 self._expression(conjunct, group)
@@ -301,7 +308,8 @@ class _Walker:
                     for start in range(0, len(terms) - 2, 3):
                         self._pattern((terms[start], terms[start + 1], terms[start + 2]), group)
             elif part.name == "InlineData":
-                continue  # VALUES only narrow what the patterns match: finding keys may over-approximate
+                if len(part["var"]) == 1 and all(isinstance(value, URIRef) for value in part["value"]):
+                    self.narrowed[(group, f"?{part['var'][0]}")] = frozenset(value.n3() for value in part["value"])
             else:
                 raise Unsupported(f"{part.name} inside EXISTS")
 
@@ -339,6 +347,18 @@ def _text(term: object) -> str:
     if isinstance(term, Identifier):
         return term.n3()
     raise Unsupported(f"the term {term!r}")
+
+
+def _iri_list(expression: object) -> tuple[str, frozenset[str]] | None:
+    """`?x IN (<a>, <b>, …)`, all IRIs: (?x, their N-Triples texts)."""
+    if not (isinstance(expression, CompValue) and expression.name == "RelationalExpression"):
+        return None
+    variable, others = expression.get("expr"), expression.get("other") or []
+    if expression.get("op") != "IN" or not isinstance(variable, Variable) or not others:
+        return None
+    if not all(isinstance(other, URIRef) for other in others):
+        return None
+    return f"?{variable}", frozenset(other.n3() for other in others)
 
 
 def _conjuncts(expression: object) -> list[object]:
