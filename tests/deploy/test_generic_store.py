@@ -4,7 +4,6 @@ the `oxigraph` package on PyPI), run as a process of its own, with two API worke
 from __future__ import annotations
 
 import shutil
-import subprocess
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -12,10 +11,11 @@ import httpx
 import pytest
 
 from tests.api.test_reports_differential import REPORTS, bound_text, full_evaluation, report_rows, same_rows
-from tests.cli.test_cli import SEGB, clean_env, wait_for
+from tests.cli.test_cli import SEGB, clean_env
 from tests.deploy.test_workers import post_until_spread
 from tests.faults.test_crashes import caught_up, check_consistent
 from tests.support.net import free_port
+from tests.support.processes import running
 from tests.support.scenarios import lobby
 
 
@@ -24,40 +24,26 @@ def oxigraph_server(tmp_path: Path) -> Iterator[str]:
     binary = shutil.which("oxigraph")
     assert binary, "the oxigraph server is installed from requirements-test.lock"
     port = free_port()
-    process = subprocess.Popen(
-        [binary, "serve", "--location", str(tmp_path / "oxigraph-server"), "--bind", f"127.0.0.1:{port}"],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
     url = f"http://127.0.0.1:{port}"
-    try:
-        wait_for(f"{url}/query?query=ASK%7B%7D", timeout=30)
+    location = tmp_path / "oxigraph-server"
+    argv = [binary, "serve", "--location", str(location), "--bind", f"127.0.0.1:{port}"]
+    with running(argv, ready=f"{url}/query?query=ASK%7B%7D", timeout=30):
         yield url
-    finally:
-        process.terminate()
-        process.wait(timeout=30)
 
 
 @pytest.fixture
 def api_on_oxigraph_server(oxigraph_server: str, tmp_path: Path) -> Iterator[str]:
     port = free_port()
+    url = f"http://127.0.0.1:{port}"
     env = {
         "STORE": "sparql",
         "SPARQL_QUERY_ENDPOINT": f"{oxigraph_server}/query",
         "SPARQL_UPDATE_ENDPOINT": f"{oxigraph_server}/update",
     }
     command = ["serve", "--only", "api", "--workers", "2", "--data-dir", str(tmp_path / "data")]
-    with (tmp_path / "api.log").open("wb") as log:
-        process = subprocess.Popen(
-            [*SEGB, *command, "--api-port", str(port)], env=clean_env(env), stdout=subprocess.DEVNULL, stderr=log
-        )
-    url = f"http://127.0.0.1:{port}"
-    try:
-        wait_for(f"{url}/healthz/live", timeout=60)
+    argv = [*SEGB, *command, "--api-port", str(port)]
+    with running(argv, ready=f"{url}/healthz/live", env=clean_env(env), log=tmp_path / "api.log"):
         yield url
-    finally:
-        process.terminate()
-        process.wait(timeout=60)
 
 
 def test_robots_reports_and_graph_work_on_oxigraph_server_behind_two_workers(api_on_oxigraph_server: str) -> None:

@@ -2,35 +2,28 @@
 
 from __future__ import annotations
 
-import signal
-import subprocess
 from collections.abc import Iterator
 
 import httpx
 import pytest
 
 from segb_server.backend.auth import mint_token
-from tests.cli.test_cli import SEGB, clean_env, wait_for
+from tests.cli.test_cli import SEGB, clean_env
 from tests.support.net import free_port
+from tests.support.processes import running
 
 SECRET = "p" * 40
 
 
 def serve_ui(trusted: str) -> Iterator[str]:
     api_port, ui_port = free_port(), free_port()
-    process = subprocess.Popen(
-        [*SEGB, "serve", "--store", "memory", "--api-port", str(api_port), "--ui-port", str(ui_port)],
-        env=clean_env({"FORWARDED_ALLOW_IPS": trusted, "SECRET_KEY": SECRET}),
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
     url = f"http://127.0.0.1:{ui_port}"
-    try:
-        wait_for(f"{url}/health", timeout=60)
+    with running(
+        [*SEGB, "serve", "--store", "memory", "--api-port", str(api_port), "--ui-port", str(ui_port)],
+        ready=f"{url}/health",
+        env=clean_env({"FORWARDED_ALLOW_IPS": trusted, "SECRET_KEY": SECRET}),
+    ):
         yield url
-    finally:
-        process.send_signal(signal.SIGTERM)
-        process.wait(timeout=60)
 
 
 def saved_cookie(url: str) -> str:
