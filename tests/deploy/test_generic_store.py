@@ -3,7 +3,9 @@ the `oxigraph` package on PyPI), run as a process of its own, with two API worke
 
 from __future__ import annotations
 
+import os
 import shutil
+import sysconfig
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -19,9 +21,18 @@ from tests.support.processes import running
 from tests.support.scenarios import lobby
 
 
+def oxigraph_binary() -> str | None:
+    """The `oxigraph` executable pip installed beside this interpreter's scripts (or for the user), else on PATH."""
+    for scheme in (sysconfig.get_default_scheme(), f"{os.name}_user"):
+        candidate = Path(sysconfig.get_path("scripts", scheme)) / "oxigraph"
+        if candidate.is_file():
+            return str(candidate)
+    return shutil.which("oxigraph")
+
+
 @pytest.fixture
 def oxigraph_server(tmp_path: Path) -> Iterator[str]:
-    binary = shutil.which("oxigraph")
+    binary = oxigraph_binary()
     assert binary, "the oxigraph server is installed from requirements-test.lock"
     port = free_port()
     url = f"http://127.0.0.1:{port}"
