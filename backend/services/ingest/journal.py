@@ -11,15 +11,13 @@ SQLite (a file in DATA_DIR, or memory) in WAL mode. All work is blocking: async 
 
 from __future__ import annotations
 
-import fcntl
 import hashlib
-import os
 import shutil
 import sqlite3
 import threading
 import zlib
 from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass, replace
 from datetime import UTC, datetime
 from pathlib import Path
@@ -33,6 +31,7 @@ from segb_server.backend.services.ingest.receipts import (
     Receipt,
     Verification,
 )
+from segb_server.backend.services.ops.file_lock import FileLock
 
 JOURNAL_FILE = "ledger.sqlite3"  # the journal grew out of the ingest ledger and keeps its file
 EMPTY_SHA256 = hashlib.sha256(b"").hexdigest()
@@ -112,9 +111,9 @@ class Journal:
             ":memory:" if path is None else str(path), isolation_level=None, check_same_thread=False, timeout=30
         )
         self._lock = threading.Lock()
-        # Writers of other processes (API workers) queue on this file lock, which wakes the next one as soon as
-        # it is released; SQLite's own busy wait sleeps in steps of up to 100 ms.
-        self._writers = None if path is None else os.open(path.with_name(f"{path.name}.lock"), os.O_RDWR | os.O_CREAT)
+        # Writers of other processes (API workers) queue on this lock, which wakes the next one as soon as it is
+        # released; SQLite's own busy wait sleeps in steps of up to 100 ms.
+        self._writers = None if path is None else FileLock(path.with_name(f"{path.name}.lock"))
         # Digests known to be in the journal since the last clearing, for this epoch: re-published triples
         # then cost no database lookup. Only ever holds digests that were committed.
         self._known: set[bytes] = set()
@@ -287,8 +286,7 @@ class Journal:
         with self._lock:
             self._connection.close()
             if self._writers is not None:
-                os.close(self._writers)
-                self._writers = None
+                self._writers.close()
 
     # --- plumbing --------------------------------------------------------------------------------------
 
@@ -314,9 +312,7 @@ class Journal:
     @contextmanager
     def _transaction(self) -> Iterator[sqlite3.Connection]:
         # IMMEDIATE takes the write lock up front, so even another process appending cannot fork the chain.
-        if self._writers is not None:
-            fcntl.flock(self._writers, fcntl.LOCK_EX)
-        try:
+        with self._writers.held() if self._writers is not None else nullcontext():
             self._connection.execute("BEGIN IMMEDIATE")
             try:
                 yield self._connection
@@ -325,9 +321,6 @@ class Journal:
                     self._connection.execute("ROLLBACK")
                 raise
             self._connection.execute("COMMIT")
-        finally:
-            if self._writers is not None:
-                fcntl.flock(self._writers, fcntl.LOCK_UN)
 
     def storage_ok(self) -> bool:
         """Whether the journal can take writes: True unless the last write failed for want of space and the

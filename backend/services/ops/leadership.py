@@ -10,11 +10,12 @@ released when its holder exits or is killed, and another worker takes over withi
 
 from __future__ import annotations
 
-import fcntl
 import logging
 import os
 import threading
 from pathlib import Path
+
+from segb_server.backend.services.ops.file_lock import FileLock
 
 logger = logging.getLogger("segb.leadership")
 
@@ -26,7 +27,7 @@ class Leadership:
 
     def __init__(self, path: Path | None) -> None:
         self.path = path
-        self._file: int | None = None
+        self._file: FileLock | None = None
         self._lock = threading.Lock()
         self._alone = path is None
 
@@ -43,20 +44,17 @@ class Leadership:
             if self._file is not None:
                 return True
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            descriptor = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
-            try:
-                fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                os.close(descriptor)
+            lock = FileLock(self.path)
+            if not lock.try_hold():
+                lock.close()
                 return False
-            os.ftruncate(descriptor, 0)
-            os.write(descriptor, f"{os.getpid()}\n".encode())  # who leads, for a person looking
-            self._file = descriptor
+            lock.write_note(f"{os.getpid()}\n")
+            self._file = lock
         logger.info("this process (pid %d) applies the journal and keeps the views current", os.getpid())
         return True
 
     def release(self) -> None:
         with self._lock:
             if self._file is not None:
-                os.close(self._file)  # closing the descriptor releases the flock
+                self._file.close()  # closing it releases the lock
                 self._file = None

@@ -10,7 +10,6 @@ which its web UI reads.
 
 from __future__ import annotations
 
-import fcntl
 import json
 import logging
 import os
@@ -22,6 +21,7 @@ from typing import Any, BinaryIO
 
 from segb_server.backend.config import Settings
 from segb_server.backend.services.clock import utc_iso
+from segb_server.backend.services.ops.file_lock import FileLock
 
 ROOT_LOGGER = "segb"
 LEVELS = ("DEBUG", "INFO", "WARNING", "ERROR", "CRITICAL")
@@ -69,22 +69,19 @@ class _JsonLines(logging.Handler):
         self.path = path
         self.max_bytes = max_bytes
         self.backups = backups
-        self._lock_file = os.open(path.with_name(f"{path.name}.lock"), os.O_RDWR | os.O_CREAT, 0o644)
+        self._writers = FileLock(path.with_name(f"{path.name}.lock"))
         self._stream: BinaryIO | None = None
 
     def emit(self, record: logging.LogRecord) -> None:
         try:
             data = (line_of(entry_of(record)) + "\n").encode("utf-8")
-            fcntl.flock(self._lock_file, fcntl.LOCK_EX)
-            try:
+            with self._writers.held():
                 stream = self._current()
                 if self.backups and os.fstat(stream.fileno()).st_size + len(data) > self.max_bytes:
                     self._rotate()
                     stream = self._current()
                 stream.write(data)
                 stream.flush()
-            finally:
-                fcntl.flock(self._lock_file, fcntl.LOCK_UN)
         except Exception:
             self.handleError(record)
 
@@ -115,9 +112,7 @@ class _JsonLines(logging.Handler):
             if self._stream is not None:
                 self._stream.close()
                 self._stream = None
-            if self._lock_file >= 0:
-                os.close(self._lock_file)
-                self._lock_file = -1
+            self._writers.close()
         finally:
             self.release()
         super().close()
