@@ -17,7 +17,6 @@ from tqdm import tqdm
 
 from segb_server.backend.config import Settings
 from segb_server.backend.services.errors import ServiceError
-from segb_server.backend.services.ops.leadership import LOCK_FILE
 from segb_server.backend.store.base import StoreError
 
 if TYPE_CHECKING:  # the services are imported by the commands that need them, not whenever the CLI starts
@@ -198,7 +197,7 @@ def _rebuild(args: argparse.Namespace) -> int:
     settings = _settings(args)
     with _services(settings) as services:
         if not services.leadership.try_acquire():
-            return _fail(f"a server is running on {settings.data_dir} (it holds {LOCK_FILE}): stop it first")
+            return _fail(f"a server is running on this journal (it holds {services.leadership.where}): stop it first")
         journal, store = services.journal, services.store
         start = journal.last_clearing()
         removed = store.clear(through=start)

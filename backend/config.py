@@ -62,7 +62,14 @@ class Settings(BaseSettings):
     journal_max_backlog: int = Field(
         100_000, ge=0, description="Entries the store may fall behind the journal before posts get 503 (0 = no limit)."
     )
-    journal_max_bytes: int = Field(0, ge=0, description="Largest size of the journal file in bytes (0 = no limit).")
+    state_url: str = Field(
+        "",
+        description="Where the journal and shared contexts live: empty = SQLite files in DATA_DIR; "
+        "postgresql://user:password@host:port/db = a PostgreSQL database API processes on several hosts share.",
+    )
+    journal_max_bytes: int = Field(
+        0, ge=0, description="Largest size of the journal's database in bytes (0 = no limit)."
+    )
     journal_sync: Literal["normal", "full"] = Field(
         "normal",
         description="normal: a journal commit survives a crash of the server; full: also a power cut (slower).",
@@ -156,6 +163,13 @@ class Settings(BaseSettings):
     def _absolute_http_iri(cls, value: str) -> str:
         if not value.startswith(("http://", "https://")):
             raise ValueError("must be an absolute http(s) IRI")
+        return value
+
+    @field_validator("state_url")
+    @classmethod
+    def _postgresql_url(cls, value: str) -> str:
+        if value and not value.startswith(("postgresql://", "postgres://")):
+            raise ValueError("must be empty (SQLite in DATA_DIR) or a postgresql:// URL")
         return value
 
     @field_validator("log_level")

@@ -24,6 +24,7 @@ from dataclasses import dataclass, replace
 from datetime import UTC, datetime
 from pathlib import Path
 
+from bench.analysis import POSTGRES_LABEL
 from bench.breakdown import breakdown
 from bench.freshness import steady_lag
 from bench.live import live_reports
@@ -35,6 +36,7 @@ from bench.runs import Cumulative, cumulative, journal_size, many_robots, small_
 from bench.server import ROOT, baseline_server, null_server, python_path, segb_server
 from bench.virtuoso import count_graph, measure_floor
 from bench.workloads import LivePost, cumulative_posts, event_deltas, live_posts, ntriples_of, replicate
+from tests.support.postgres import PostgresProcess
 from tests.support.virtuoso import VirtuosoProcess
 
 GRAPH = "http://amor-segb/events"
@@ -60,7 +62,9 @@ PROFILES = {
 }
 BREAKDOWN_POSTS = 300
 SECTIONS = ("small", "robots", "workers", "steady", "cumulative", "reports")
-WORKER_COUNTS = (1, 2, 4)  # API processes (API_WORKERS) sharing one Virtuoso, in the "workers" section
+# API processes (API_WORKERS) sharing one Virtuoso in the "workers" section, with the state in SQLite files
+# (False) or in PostgreSQL (True, STATE_URL).
+WORKER_RUNS = ((1, False), (2, False), (4, False), (2, True), (4, True))
 TRIPLES_PER_INTERACTION = 151
 INTERACTIONS_PER_COPY = 100
 
@@ -189,8 +193,8 @@ def run_embedded(profile: Profile, loads: Loads, root: Path, figures: Figures, s
         figures.peak_rss_mib[(f"API process, {label}", size)] = measured.peak_rss_mib
 
 
-def workers_label(workers: int) -> str:
-    return f"virtuoso, {workers} API worker{'s' if workers > 1 else ''}"
+def workers_label(workers: int, postgres: bool = False) -> str:
+    return f"virtuoso, {workers} API worker{'s' if workers > 1 else ''}" + (f", {POSTGRES_LABEL}" if postgres else "")
 
 
 def measuring_command(argv: list[str]) -> str:
@@ -278,12 +282,19 @@ def run_virtuoso(profile: Profile, loads: Loads, root: Path, figures: Figures, s
                     naive.url, robots, BASELINE, lambda: count_graph(virtuoso, naive_graph)
                 )
         if "workers" in sections:
-            for workers in WORKER_COUNTS:
-                name = workers_label(workers)
-                graph = f"{GRAPH}/workers{workers}"
-                with segb_server("virtuoso", root / f"v-workers{workers}", env(graph, API_WORKERS=str(workers))) as one:
-                    count = lambda: stored_triples(one.url)  # noqa: E731
-                    figures.robots[name] = many_robots(one.url, robots, name, count, readiness=True)
+            postgres = PostgresProcess()
+            postgres.start()
+            try:
+                for workers, shared_state in WORKER_RUNS:
+                    name = workers_label(workers, shared_state)
+                    key = f"workers{workers}{'-pg' if shared_state else ''}"
+                    state = {"STATE_URL": postgres.create_database(key.replace("-", "_"))} if shared_state else {}
+                    settings = env(f"{GRAPH}/{key}", API_WORKERS=str(workers), **state)
+                    with segb_server("virtuoso", root / f"v-{key}", settings) as one:
+                        count = lambda: stored_triples(one.url)  # noqa: E731
+                        figures.robots[name] = many_robots(one.url, robots, name, count, readiness=True)
+            finally:
+                postgres.remove()
         if "steady" in sections:
             with segb_server("virtuoso", root / "v-steady", env(GRAPH + "/steady", INGEST_ACK="journal")) as server:
                 figures.steady[label] = steady_lag(server.url, deltas, LIVE_RATE, profile.steady_seconds)

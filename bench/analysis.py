@@ -113,6 +113,7 @@ def robots_notes(embedded: ManyRobots | None, floor: ManyRobots | None) -> list[
 
 
 WORKERS_LABEL = "API worker"  # in the names of the "workers" section's rows
+POSTGRES_LABEL = "PostgreSQL state"  # in the names of its rows with the state in PostgreSQL
 
 
 def workers_notes(robots: dict[str, ManyRobots]) -> list[str]:
@@ -131,6 +132,14 @@ def workers_notes(robots: dict[str, ManyRobots]) -> list[str]:
         "queries) is the limit here, as the capacity model in docs/scaling.md shows. Each row is one run, and "
         "whole runs differ by up to a factor of 2 here."
     )
+    shared = {name: run for name, run in rows.items() if POSTGRES_LABEL in name}
+    if shared:
+        rates = ", ".join(f"{run.posts_per_second:.0f}" for run in shared.values())
+        text += (
+            f" With the state in PostgreSQL (`STATE_URL`, the rows ending *{POSTGRES_LABEL}*: {rates} posts/s) a "
+            "fourth server shares the same 2 cores, and every append is a round trip to it; it runs here without "
+            "fsync, as the tests' fixture starts it. PostgreSQL is there for several hosts, not for speed on one."
+        )
     return [*textwrap.wrap(text, 110, break_on_hyphens=False), ""]
 
 

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# The README's test command. Installs what the tests need — Debian's Virtuoso and Chromium when missing, the
-# pinned Python packages from requirements-test.lock (hash-checked), the project itself — then runs pytest.
+# The README's test command. Installs what the tests need — Debian's Virtuoso, Chromium, PostgreSQL and nginx
+# when missing, the pinned Python packages from requirements-test.lock (hash-checked), the project itself — then
+# runs pytest.
 # Extra arguments go to pytest, e.g. `./scripts/test.sh -m "not browser and not virtuoso"`.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -10,6 +11,10 @@ command -v virtuoso-t >/dev/null 2>&1 || missing+=(virtuoso-opensource-7-bin)
 command -v chromium >/dev/null 2>&1 || missing+=(chromium fonts-dejavu-core)
 command -v docker-compose >/dev/null 2>&1 || missing+=(docker-compose)
 command -v curl >/dev/null 2>&1 || missing+=(curl)
+command -v wget >/dev/null 2>&1 || missing+=(wget)
+# Debian keeps these outside PATH (/usr/lib/postgresql/<version>/bin, /usr/sbin); the fixtures look there.
+command -v initdb >/dev/null 2>&1 || compgen -G "/usr/lib/postgresql/*/bin/initdb" >/dev/null || missing+=(postgresql)
+command -v nginx >/dev/null 2>&1 || [ -x /usr/sbin/nginx ] || missing+=(nginx)
 if ((${#missing[@]})); then
   sudo=""
   [ "$(id -u)" -eq 0 ] || sudo="sudo"

@@ -18,6 +18,7 @@ from segb_server.backend.store.base import Store
 from segb_server.backend.store.oxigraph import OxigraphStore
 from segb_server.backend.store.virtuoso import VirtuosoStore
 from tests.support.live_server import LiveServer
+from tests.support.postgres import PostgresProcess
 from tests.support.virtuoso import VirtuosoProcess
 from tests.support.write_guard import differences, redirect_home, take
 
@@ -78,6 +79,20 @@ def virtuoso(tmp_path_factory: pytest.TempPathFactory) -> Iterator[VirtuosoProce
     process.start()
     yield process
     process.stop()
+
+
+@pytest.fixture(scope="session")
+def postgres() -> Iterator[PostgresProcess]:
+    process = PostgresProcess()
+    process.start()
+    yield process
+    process.remove()
+
+
+@pytest.fixture
+def postgres_url(postgres: PostgresProcess) -> str:
+    """A new, empty database on the shared PostgreSQL server."""
+    return postgres.create_database(f"segb_{uuid.uuid4().hex[:16]}")
 
 
 def virtuoso_store(process: VirtuosoProcess, graph_uri: str | None = None) -> VirtuosoStore:

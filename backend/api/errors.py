@@ -15,6 +15,7 @@ from segb_server.backend.services.formats import NotAcceptable
 from segb_server.backend.services.ingest.journal import StorageFull
 from segb_server.backend.services.ingest.service import JournalBacklogFull
 from segb_server.backend.services.sparql.runner import QueryTooBig
+from segb_server.backend.state.database import StateUnavailable
 from segb_server.backend.store.base import QueryTimeout, StoreError, StoreRejectedQuery, StoreUnavailable
 
 logger = logging.getLogger("segb.api")
@@ -50,6 +51,7 @@ STATUS_BY_ERROR: list[tuple[type[Exception], int]] = [
     (QueryTimeout, 503),
     (QueryTooBig, 503),
     (StoreUnavailable, 503),
+    (StateUnavailable, 503),
     (StoreError, 502),
 ]
 
@@ -73,6 +75,8 @@ def _service_error(request: Request, error: Exception) -> JSONResponse:
         body = error_body(status, str(error), "query_timeout", timeout_seconds=error.seconds)
     elif isinstance(error, QueryTooBig):
         body = error_body(status, str(error), "query_memory", memory_bytes=error.limit)
+    elif isinstance(error, StateUnavailable):
+        body = error_body(status, str(error), "state_unavailable")
     elif isinstance(error, StoreRejectedQuery):
         body = error_body(status, f"The store rejected the query: {error}", "invalid_query")
     elif isinstance(error, StoreError):

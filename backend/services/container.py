@@ -8,7 +8,7 @@ from segb_server.backend.config import Settings
 from segb_server.backend.services.ingest.applier import Applier
 from segb_server.backend.services.ingest.journal import JOURNAL_FILE, Journal
 from segb_server.backend.services.ingest.service import IngestService
-from segb_server.backend.services.ops.leadership import LOCK_FILE, Leadership
+from segb_server.backend.services.ops.leadership import LOCK_FILE, Leadership, SharedLeadership
 from segb_server.backend.services.ops.result_cache import DataVersion, ResultCache
 from segb_server.backend.services.ops.server_log import ServerLog
 from segb_server.backend.services.shared_context.policy import Policy
@@ -24,6 +24,7 @@ from segb_server.backend.services.views.materialized.rows import ReportRows
 from segb_server.backend.services.views.projector import Projector
 from segb_server.backend.services.views.reports import FOLDER as REPORTS_FOLDER
 from segb_server.backend.services.views.reports import ReportService
+from segb_server.backend.state.opening import open_state
 from segb_server.backend.store.base import Store
 
 # What the reports, the graph explorer and the explanations run; without them the server must not start.
@@ -48,13 +49,15 @@ class Services:
     shared_context: SharedContextService
     queries: QueryRunner
     views: Projector  # keeps the reports' rows and the graph index current
-    leadership: Leadership  # held by the one process (of several on this data directory) that applies and keeps views
+    leadership: Leadership | SharedLeadership  # held by the one process (of all sharing the journal) that applies
+    views_leadership: Leadership  # held by the one process (of several on this data directory) that keeps views
     server_log: ServerLog | None = None  # the API's own log; None where nothing serves it (the CLI, the demo)
 
     def start(self) -> None:
         """Start the background work of a serving API: applying the journal, keeping the views current (or, when
         another process on this data directory does that, following it)."""
         self.leadership.try_acquire()
+        self.views_leadership.try_acquire()
         self.applier.start()
         self.views.start()
 
@@ -68,6 +71,7 @@ class Services:
         self.journal.close()
         self.shared_context.close()
         self.leadership.release()
+        self.views_leadership.release()
 
 
 def build_services(
@@ -78,11 +82,17 @@ def build_services(
     # A memory store keeps its journal in memory too: nothing of such a server is meant to be written.
     in_memory = settings.store == "memory"
     journal = Journal(
-        None if in_memory else settings.data_dir / JOURNAL_FILE,
-        sync_full=settings.journal_sync == "full",
+        open_state(
+            settings.state_url,
+            None if in_memory else settings.data_dir / JOURNAL_FILE,
+            writers="journal",
+            sync_full=settings.journal_sync == "full",
+        ),
         max_bytes=settings.journal_max_bytes,
     )
-    leadership = Leadership(None if in_memory else settings.data_dir / LOCK_FILE)
+    # One process applies among all that share the journal; one per data directory keeps its views.
+    views_leadership = Leadership(None if in_memory else settings.data_dir / LOCK_FILE)
+    leadership = SharedLeadership(settings.state_url, "applier") if settings.state_url else views_leadership
     applier = Applier(journal, store, batch_triples=settings.apply_batch_triples, leadership=leadership)
     version = DataVersion()
     applier.on_applied(lambda _step: version.bump())  # whatever the applier writes invalidates cached results
@@ -91,7 +101,7 @@ def build_services(
     for query in catalog.under(REPORTS_FOLDER):
         maintainer.add(query)
     index = GraphIndex(store, None if in_memory else settings.data_dir / GRAPH_FILE)
-    views = Projector(store, journal, [*maintainer.reports.values(), index], leadership)
+    views = Projector(store, journal, [*maintainer.reports.values(), index], views_leadership, applier)
     applier.on_applied(views.on_applied)
     graph = GraphService(catalog, store, index, wait_ready=lambda timeout: views.wait_for(0, timeout))
     return Services(
@@ -113,7 +123,8 @@ def build_services(
         graph=graph,
         explain=ExplainService(graph),
         shared_context=SharedContextService.open(
-            Policy.from_settings(settings), None if in_memory else settings.data_dir / STATE_FILE
+            Policy.from_settings(settings),
+            open_state(settings.state_url, None if in_memory else settings.data_dir / STATE_FILE, writers="contexts"),
         ),
         queries=query_runner(
             store,
@@ -124,5 +135,6 @@ def build_services(
         ),
         views=views,
         leadership=leadership,
+        views_leadership=views_leadership,
         server_log=server_log,
     )

@@ -4,6 +4,12 @@ from __future__ import annotations
 
 from typing import Any
 
+from segb_server.backend.state.database import StateUnavailable
+from segb_server.backend.store.base import StoreError
+
+# What background work waits out and retries: the triple store or the state database is away (or failing).
+OUTAGES: tuple[type[Exception], ...] = (StoreError, StateUnavailable)
+
 
 class ServiceError(Exception):
     """Base of every error a caller can act on. `code` is a stable machine-readable name."""

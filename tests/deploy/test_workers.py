@@ -22,8 +22,10 @@ from pathlib import Path
 from urllib.parse import urlsplit
 
 import httpx
+import psycopg
 import pytest
 
+from segb_server.backend.state.postgres import lock_key
 from tests.cli.test_cli import SEGB, clean_env, segb, wait_for
 from tests.faults.test_crashes import all_receipts, caught_up, check_consistent, post_turtle
 from tests.support.net import free_port
@@ -40,8 +42,19 @@ POSTS_PER_ROBOT = 100
 class Workers:
     """`segb serve --only api --workers N` on Virtuoso, as a process group of its own."""
 
-    def __init__(self, virtuoso: VirtuosoProcess, data_dir: Path, workers: int, *, ui: bool = False) -> None:
+    def __init__(
+        self,
+        virtuoso: VirtuosoProcess,
+        data_dir: Path,
+        workers: int,
+        *,
+        ui: bool = False,
+        graph_uri: str | None = None,
+        state_url: str = "",
+    ) -> None:
+        """`graph_uri`: the store's graph (a new one unless given); `state_url`: STATE_URL (empty: SQLite)."""
         self.port, self.ui_port = free_port(), free_port()
+        self.state_url = state_url
         self.url = f"http://127.0.0.1:{self.port}"
         self.data_dir = data_dir
         self.env = {
@@ -49,7 +62,8 @@ class Workers:
             "VIRTUOSO_ENDPOINT": virtuoso.endpoint,
             "VIRTUOSO_USER": virtuoso.user,
             "VIRTUOSO_PASSWORD": virtuoso.password,
-            "VIRTUOSO_GRAPH_URI": f"http://amor-segb/test/{uuid.uuid4().hex}",
+            "VIRTUOSO_GRAPH_URI": graph_uri or f"http://amor-segb/test/{uuid.uuid4().hex}",
+            "STATE_URL": state_url,
         }
         command = ["serve", *([] if ui else ["--only", "api"]), "--workers", str(workers), "--data-dir", str(data_dir)]
         self.log = data_dir.with_name(f"{data_dir.name}.log")  # a file: a pipe nobody reads would stall the server
@@ -64,6 +78,9 @@ class Workers:
         wait_for(f"{self.url}/healthz/live", timeout=60)
 
     def leader(self) -> int:
+        """The process that applies the journal (with SQLite state, the one holding the data directory's lock)."""
+        if self.state_url:
+            return applier_pid(self.state_url)
         return int((self.data_dir / "leader.lock").read_text().strip())
 
     def stop(self) -> str:
@@ -77,12 +94,26 @@ class Workers:
         return self.log.read_text(errors="replace")
 
 
+def applier_pid(url: str) -> int:
+    """The process holding the applier's lock, as PostgreSQL sees it (servers name their connections); 0 while
+    nobody holds it."""
+    with psycopg.connect(url) as connection:
+        row = connection.execute(
+            "SELECT a.application_name FROM pg_locks l JOIN pg_stat_activity a ON a.pid = l.pid "
+            "WHERE l.locktype = 'advisory' AND l.granted AND ((l.classid::bigint << 32) | l.objid::bigint) = %s",
+            (lock_key("leader:applier"),),
+        ).fetchone()
+    return 0 if row is None else int(row[0].removeprefix("segb-server "))
+
+
 @pytest.fixture
-def start_workers(virtuoso: VirtuosoProcess, tmp_path: Path) -> Iterator[object]:
+def start_workers(virtuoso: VirtuosoProcess, tmp_path: Path, request: pytest.FixtureRequest) -> Iterator[object]:
+    """Starts workers; with `state="postgresql"` their state is in a new database on a real PostgreSQL."""
     started: list[Workers] = []
 
-    def start(workers: int, ui: bool = False) -> Workers:
-        started.append(Workers(virtuoso, tmp_path / f"data-{len(started)}", workers, ui=ui))
+    def start(workers: int, ui: bool = False, state: str = "sqlite") -> Workers:
+        state_url = request.getfixturevalue("postgres_url") if state == "postgresql" else ""
+        started.append(Workers(virtuoso, tmp_path / f"data-{len(started)}", workers, ui=ui, state_url=state_url))
         return started[-1]
 
     yield start
@@ -174,9 +205,15 @@ def processes_serving(url: str, path: str, request_ids: str = "") -> set[int]:
     }
 
 
+STATES = ["sqlite", pytest.param("postgresql", marks=pytest.mark.postgres)]
+
+
+@pytest.mark.parametrize("state", STATES)
 @pytest.mark.parametrize("workers", [2, 4])
-def test_robots_posting_to_several_workers_make_one_chain_and_lose_nothing(start_workers: object, workers: int) -> None:
-    server = start_workers(workers)  # type: ignore[operator]
+def test_robots_posting_to_several_workers_make_one_chain_and_lose_nothing(
+    start_workers: object, workers: int, state: str
+) -> None:
+    server = start_workers(workers, state=state)  # type: ignore[operator]
     acknowledged = post_all(server.url)
     assert len(acknowledged) == ROBOTS * POSTS_PER_ROBOT
     caught_up(server.url)
@@ -187,10 +224,11 @@ def test_robots_posting_to_several_workers_make_one_chain_and_lose_nothing(start
     assert len(processes_serving(server.url, "/ttl")) >= 2, "every post went to one worker: nothing was shared"
 
 
-def test_concurrent_resolutions_across_workers_give_one_context(start_workers: object) -> None:
+@pytest.mark.parametrize("state", STATES)
+def test_concurrent_resolutions_across_workers_give_one_context(start_workers: object, state: str) -> None:
     """Rounds of 16 simultaneous resolutions of one observation (each round a new one), until a round was
     served by more than one worker (the kernel picks; a round is too quick to be always spread)."""
-    server = start_workers(2)  # type: ignore[operator]
+    server = start_workers(2, state=state)  # type: ignore[operator]
     spread_rounds = 0
     for round_number in range(20):
         body = {
@@ -217,8 +255,11 @@ def test_concurrent_resolutions_across_workers_give_one_context(start_workers: o
     assert spread_rounds >= 3, "the resolutions were never spread over the workers"
 
 
-def test_a_report_stream_hears_of_posts_taken_by_other_workers_and_the_lead_moves_on(start_workers: object) -> None:
-    server = start_workers(2)  # type: ignore[operator]
+@pytest.mark.parametrize("state", STATES)
+def test_a_report_stream_hears_of_posts_taken_by_other_workers_and_the_lead_moves_on(
+    start_workers: object, state: str
+) -> None:
+    server = start_workers(2, state=state)  # type: ignore[operator]
     caught_up(server.url)
     heard: set[str] = set()
     listening = threading.Event()
@@ -261,11 +302,12 @@ def test_a_report_stream_hears_of_posts_taken_by_other_workers_and_the_lead_move
 
     # The leader dies (SIGKILL): a follower takes the lock over and applies what is posted next.
     leader = server.leader()
+    assert leader, "no worker applies"
     os.kill(leader, signal.SIGKILL)
     deadline = time.monotonic() + 30
-    while time.monotonic() < deadline and server.leader() == leader:
+    while time.monotonic() < deadline and server.leader() in (leader, 0):
         time.sleep(0.2)
-    assert server.leader() != leader, "no worker took the lead over"
+    assert server.leader() not in (leader, 0), "no worker took the lead over"
     turtle = post_turtle(99, 0)
     answer = httpx.post(f"{server.url}/ttl", json={"ttl_content": turtle, "user": "late"}, timeout=30)
     assert answer.status_code == 201, answer.text

@@ -20,6 +20,8 @@ import yaml
 
 ROOT = Path(__file__).resolve().parents[2]
 COMPOSE_FILE = ROOT / "docker-compose.yaml"
+POSTGRES_OVERRIDE = ROOT / "docker-compose.postgres.yaml"  # the state in PostgreSQL, added with `-f`
+NGINX_CONF = ROOT / "deploy" / "nginx.conf"
 ENV_EXAMPLE = ROOT / ".env.example"
 DOCKERFILE = ROOT / "Dockerfile"
 COMPOSE_HINT = "install Debian's docker-compose (scripts/test.sh does)"
@@ -32,17 +34,21 @@ _PORT_FLAGS = ("--api-port", "--ui-port")
 # --- docker-compose ------------------------------------------------------------------------------------
 
 
-def run_compose_config(directory: Path, env_text: str | None) -> subprocess.CompletedProcess[str]:
-    """`docker-compose config` on a copy of docker-compose.yaml in `directory`, with `env_text` as its `.env`
-    (none when None), in an environment holding nothing but PATH and HOME."""
+def run_compose_config(
+    directory: Path, env_text: str | None, files: tuple[Path, ...] = (COMPOSE_FILE,)
+) -> subprocess.CompletedProcess[str]:
+    """`docker-compose config` on copies of `files` (docker-compose.yaml, and overrides) in `directory`, with
+    `env_text` as its `.env` (none when None), in an environment holding nothing but PATH and HOME."""
     binary = shutil.which("docker-compose")
     if binary is None:
         raise RuntimeError(f"docker-compose not found: {COMPOSE_HINT}")
-    shutil.copy(COMPOSE_FILE, directory / COMPOSE_FILE.name)
+    for file in files:
+        shutil.copy(file, directory / file.name)
     if env_text is not None:
         (directory / ".env").write_text(env_text)
+    selected = [argument for file in files for argument in ("-f", str(directory / file.name))]
     return subprocess.run(
-        [binary, "--project-directory", str(directory), "-f", str(directory / COMPOSE_FILE.name), "config"],
+        [binary, "--project-directory", str(directory), *selected, "config"],
         cwd=directory,
         env={"PATH": os.environ.get("PATH", "/usr/bin:/bin"), "HOME": str(directory)},
         capture_output=True,
@@ -51,9 +57,9 @@ def run_compose_config(directory: Path, env_text: str | None) -> subprocess.Comp
     )
 
 
-def resolved_compose(directory: Path) -> dict[str, Any]:
+def resolved_compose(directory: Path, files: tuple[Path, ...] = (COMPOSE_FILE,)) -> dict[str, Any]:
     """What compose would run with `.env.example` as `.env`: every variable interpolated."""
-    result = run_compose_config(directory, ENV_EXAMPLE.read_text())
+    result = run_compose_config(directory, ENV_EXAMPLE.read_text(), files)
     if result.returncode != 0:
         raise RuntimeError(f"docker-compose config failed: {result.stderr}")
     return yaml.safe_load(result.stdout)
@@ -168,13 +174,29 @@ def to_native(
 
 
 def native_urls(text: str, ports: Mapping[tuple[str, int], int]) -> str:
-    """`text` with every `http://<host>:<port>` in `ports` pointing at 127.0.0.1 and the mapped port."""
+    """`text` with every `<scheme>://[<user>@]<host>:<port>` in `ports` pointing at 127.0.0.1 and the mapped
+    port (http://, and postgresql:// with its account)."""
 
     def replace(match: re.Match[str]) -> str:
         native = ports.get((match["host"], int(match["port"])))
-        return match[0] if native is None else f"http://127.0.0.1:{native}"
+        return match[0] if native is None else f"{match['prefix']}127.0.0.1:{native}"
 
-    return re.sub(r"http://(?P<host>[A-Za-z0-9.-]+):(?P<port>\d+)", replace, text)
+    return re.sub(r"(?P<prefix>[a-z]+://(?:[^@/\s]+@)?)(?P<host>[A-Za-z0-9.-]+):(?P<port>\d+)", replace, text)
+
+
+def native_nginx_conf(text: str, *, listen: int, upstream: Mapping[str, list[int]], root: Path) -> str:
+    """deploy/nginx.conf as the proxy would run natively: listening on `listen`; each upstream `server
+    <name>:<port>;` standing for every container of that service (Docker's DNS gives nginx all their
+    addresses), here the local ports `upstream[name]`; absolute paths (but /dev/) under `root`. Comments go."""
+    text = re.sub(r"[ \t]*#.*", "", text)
+    text = re.sub(r"listen \d+;", f"listen 127.0.0.1:{listen};", text)
+
+    def servers(match: re.Match[str]) -> str:
+        indent, name = match["indent"], match["name"]
+        return "".join(f"{indent}server 127.0.0.1:{port};\n" for port in upstream[name])
+
+    text = re.sub(r"(?P<indent>[ \t]*)server (?P<name>[a-z]+):\d+;\n", servers, text)
+    return re.sub(r"(?<=[ \t])/(?!dev/)(?P<path>[^\s;]+)", lambda match: str(root / match["path"]), text)
 
 
 def _native_value(value: str, ports: Mapping[tuple[str, int], int], root: Path) -> str:

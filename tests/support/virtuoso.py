@@ -13,6 +13,7 @@ from pathlib import Path
 import httpx
 
 from tests.support.net import free_port
+from tests.support.processes import end
 
 INSTALL_HINT = "install Debian's virtuoso-opensource-7-bin (.ci/run does)"
 
@@ -125,12 +126,7 @@ class VirtuosoProcess:
     def stop(self) -> None:
         if self._process is None:
             return
-        self._process.terminate()
-        try:
-            self._process.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            self._process.kill()
-            self._process.wait()
+        end(self._process)
         self._process = None
 
 

@@ -9,6 +9,7 @@ from fastapi import APIRouter
 from fastapi.responses import JSONResponse
 
 from segb_server.backend.api.deps import ServicesDep
+from segb_server.backend.state.database import StateUnavailable
 from segb_server.backend.store.base import StoreError
 
 router = APIRouter(tags=["health"])
@@ -64,6 +65,11 @@ async def ready(services: ServicesDep) -> ProbeResponse:
         except StoreError as error:
             body.update({"ready": False, store.kind: False, "detail": str(error)})
             status = 503
+        try:
+            services.journal.ping()
+        except StateUnavailable as error:
+            body.update({"ready": False, "journal": False, "detail": f"journal: {error}"})
+            return body, 503
         if not services.journal.storage_ok():
             body.update({"ready": False, "journal": False, "detail": f"journal: {services.journal.storage_problem}"})
             status = 503

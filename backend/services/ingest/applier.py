@@ -6,9 +6,9 @@ with no cursor (new, wiped, or from before the journal) is brought up from the l
 entries applied calls `apply_pending` — the background thread, or a post that waits for its own entry — and
 one at a time applies everything the journal holds.
 
-With several API processes on one journal (`segb serve --workers N`), only the process holding the
-leadership applies; the others follow: they read the store's cursor instead, so their readiness, backlog
-limit and `INGEST_ACK=store` waits see what the leader applied.
+With several API processes on one journal (`segb serve --workers N`, or hosts sharing a PostgreSQL state),
+only the process holding the leadership applies; the others follow: they read the store's cursor instead, so
+their readiness, backlog limit and `INGEST_ACK=store` waits see what the leader applied.
 """
 
 from __future__ import annotations
@@ -21,9 +21,10 @@ from dataclasses import dataclass
 
 from pyoxigraph import Quad, RdfFormat, parse
 
+from segb_server.backend.services.errors import OUTAGES
 from segb_server.backend.services.ingest.journal import Journal, JournalEntry
-from segb_server.backend.services.ops.leadership import Leadership
-from segb_server.backend.store.base import Store, StoreError
+from segb_server.backend.services.ops.leadership import Leadership, SharedLeadership
+from segb_server.backend.store.base import Store
 
 logger = logging.getLogger("segb.applier")
 
@@ -46,9 +47,24 @@ class Applied:
 Listener = Callable[[Applied], None]
 
 
+def quads_of(entries: Sequence[JournalEntry]) -> list[Quad]:
+    """The triples the entries added, parsed from their content."""
+    return [quad for entry in entries if entry.content for quad in parse(entry.content, RdfFormat.N_TRIPLES)]
+
+
+def applied_steps(entries: Sequence[JournalEntry]) -> list[Applied]:
+    """Entries read back from the journal as the steps that applied them (one each)."""
+    return [Applied([entry], quads_of([entry]), cleared=entry.action == "delete_all") for entry in entries]
+
+
 class Applier:
     def __init__(
-        self, journal: Journal, store: Store, *, batch_triples: int, leadership: Leadership | None = None
+        self,
+        journal: Journal,
+        store: Store,
+        *,
+        batch_triples: int,
+        leadership: Leadership | SharedLeadership | None = None,
     ) -> None:
         self.journal = journal
         self.store = store
@@ -87,7 +103,7 @@ class Applier:
             self._wake.clear()
             try:
                 self.apply_pending()
-            except StoreError as error:
+            except OUTAGES as error:
                 logger.warning("applying the journal failed (%s); retrying in %.1f s", error, delay)
                 self._stop.wait(delay)
                 delay = min(delay * 2, MAX_RETRY_SECONDS)
@@ -123,7 +139,7 @@ class Applier:
                 while entries := self.journal.entries_after(self._applied, ENTRIES_PER_READ):
                     for step in self._steps(entries):
                         self._apply(step)
-            except StoreError as error:
+            except OUTAGES as error:
                 self._applied = None  # the store may come back restored or wiped: read its cursor again
                 self.last_error = str(error)
                 raise
@@ -171,7 +187,7 @@ class Applier:
     def _follow_quietly(self) -> None:
         try:
             self._follow()
-        except StoreError as error:
+        except OUTAGES as error:
             self.last_error = str(error)
 
     def _starting_point(self) -> int:
@@ -216,7 +232,7 @@ class Applier:
             self.store.clear(through=through)
             step = Applied(entries, [], cleared=True)
         else:
-            quads = [quad for entry in entries if entry.content for quad in parse(entry.content, RdfFormat.N_TRIPLES)]
+            quads = quads_of(entries)
             self.store.apply(quads, through)
             step = Applied(entries, quads, cleared=False)
         with self._progress:

@@ -6,21 +6,19 @@ cumulative re-publish costs a membership test per triple and adds nothing. Tripl
 their N-Triples text, original lexical forms and datatypes included. The content is stored as an N-Triples
 document compressed with zlib; the receipt covers its SHA-256.
 
-SQLite (a file in DATA_DIR, or memory) in WAL mode. All work is blocking: async callers use a worker thread.
+Kept in the state database (backend/state): SQLite in DATA_DIR by default, PostgreSQL when STATE_URL names one.
+All work is blocking: async callers use a worker thread.
 """
 
 from __future__ import annotations
 
 import hashlib
-import shutil
-import sqlite3
 import threading
 import zlib
 from collections.abc import Iterator, Sequence
-from contextlib import contextmanager, nullcontext
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from datetime import UTC, datetime
-from pathlib import Path
 
 from segb_server.backend.services.clock import utc_iso
 from segb_server.backend.services.errors import NotFound, ServiceError
@@ -31,19 +29,20 @@ from segb_server.backend.services.ingest.receipts import (
     Receipt,
     Verification,
 )
-from segb_server.backend.services.ops.file_lock import FileLock
+from segb_server.backend.state.database import Database
 
 JOURNAL_FILE = "ledger.sqlite3"  # the journal grew out of the ingest ledger and keeps its file
 EMPTY_SHA256 = hashlib.sha256(b"").hexdigest()
 _ROWS_PER_INSERT = 400  # digests per INSERT statement (SQLite allows 32,766 parameters)
+_ROWS_PER_VERIFY = 1000
 FREE_BYTES_NEEDED = 1 << 20  # below this much free space, readiness reports the journal as not writable
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS receipts (
-    sequence          INTEGER PRIMARY KEY,
+    sequence          BIGINT  PRIMARY KEY,
     log_id            TEXT    NOT NULL,
     action            TEXT    NOT NULL,
-    user              TEXT    NOT NULL,
+    "user"            TEXT    NOT NULL,
     claimed_user      TEXT,
     recorded_at       TEXT    NOT NULL,
     payload_sha256    TEXT    NOT NULL,
@@ -53,12 +52,13 @@ CREATE TABLE IF NOT EXISTS receipts (
     previous_hash     TEXT    NOT NULL,
     receipt_hash      TEXT    NOT NULL
 );
-CREATE TABLE IF NOT EXISTS journal_triples (digest BLOB PRIMARY KEY) WITHOUT ROWID;
-CREATE TABLE IF NOT EXISTS journal_state (name TEXT PRIMARY KEY, value INTEGER NOT NULL);
+CREATE INDEX IF NOT EXISTS receipts_by_log_id ON receipts (log_id);
+CREATE TABLE IF NOT EXISTS journal_triples (digest {blob} PRIMARY KEY) {without_rowid};
+CREATE TABLE IF NOT EXISTS journal_state (name TEXT PRIMARY KEY, value BIGINT NOT NULL);
 """
 # Columns the journal added to the ledger's receipts table; added to an older file on opening (re-runnable).
-ADDED_COLUMNS = {"content_sha256": "TEXT", "content": "BLOB"}
-COLUMNS = ", ".join(FIELD_NAMES)
+ADDED_COLUMNS = {"content_sha256": "TEXT", "content": "{blob}"}
+COLUMNS = ", ".join(f'"{name}"' for name in FIELD_NAMES)  # quoted: `user` is a reserved word in PostgreSQL
 
 
 class StorageFull(ServiceError):
@@ -99,37 +99,24 @@ def ntriples_document(lines: Sequence[str]) -> bytes:
 
 
 class Journal:
-    """One connection serves every call, under a lock, so appends are serialised and extend one chain; BEGIN
-    IMMEDIATE also keeps another process from forking it."""
+    """One connection serves every call, under a lock, so appends are serialised and extend one chain; the
+    database's write transactions also keep other processes (API workers, other hosts) from forking it."""
 
-    def __init__(self, path: Path | None, *, sync_full: bool = False, max_bytes: int = 0) -> None:
-        self.path = path
+    def __init__(self, database: Database, *, max_bytes: int = 0) -> None:
+        self.database = database
         self.max_bytes = max_bytes
-        if path is not None:
-            path.parent.mkdir(parents=True, exist_ok=True)
-        self._connection = sqlite3.connect(
-            ":memory:" if path is None else str(path), isolation_level=None, check_same_thread=False, timeout=30
-        )
         self._lock = threading.Lock()
-        # Writers of other processes (API workers) queue on this lock, which wakes the next one as soon as it is
-        # released; SQLite's own busy wait sleeps in steps of up to 100 ms.
-        self._writers = None if path is None else FileLock(path.with_name(f"{path.name}.lock"))
         # Digests known to be in the journal since the last clearing, for this epoch: re-published triples
         # then cost no database lookup. Only ever holds digests that were committed.
         self._known: set[bytes] = set()
         self._known_epoch = -1
         self.storage_problem: str | None = None  # why the last write failed for want of space, until one works
         with self._lock:
-            if path is not None:
-                # WAL: a commit is durable across a crash of the server process. NORMAL sync leaves the newest
-                # commits to the operating system's cache on a power cut; FULL syncs every commit (slower).
-                self._connection.execute("PRAGMA journal_mode=WAL")
-                self._connection.execute(f"PRAGMA synchronous={'FULL' if sync_full else 'NORMAL'}")
-            self._connection.executescript(SCHEMA)
-            present = {row[1] for row in self._connection.execute("PRAGMA table_info(receipts)")}
+            database.script(SCHEMA)
+            present = database.columns("receipts")
             for column, kind in ADDED_COLUMNS.items():
                 if column not in present:
-                    self._connection.execute(f"ALTER TABLE receipts ADD COLUMN {column} {kind}")
+                    database.execute(f"ALTER TABLE receipts ADD COLUMN {column} {database.render(kind)}")
 
     # --- writing ---------------------------------------------------------------------------------------
 
@@ -156,7 +143,7 @@ class Journal:
                         connection.execute("RELEASE post")
                     sequence, previous = receipt.sequence, receipt.receipt_hash
                     outcomes.append(receipt)
-                self._check_size(connection)
+                self._check_size()
             # Committed: only now may the cache say these triples are in the journal.
             for post, outcome in zip(posts, outcomes, strict=True):
                 if isinstance(outcome, Receipt):
@@ -192,7 +179,7 @@ class Journal:
         return receipt, epoch
 
     def _post_receipt(
-        self, connection: sqlite3.Connection, post: PostEntry, sequence: int, previous: str
+        self, connection: Database, post: PostEntry, sequence: int, previous: str
     ) -> tuple[Receipt, bytes]:
         unknown = [index for index, digest in enumerate(post.digests) if digest not in self._known]
         new_digests = _insert_new_digests(connection, [post.digests[index] for index in unknown])
@@ -204,7 +191,7 @@ class Journal:
         )  # fmt: skip
         return _chained(receipt), content
 
-    def _insert(self, connection: sqlite3.Connection, receipt: Receipt, content: bytes) -> None:
+    def _insert(self, connection: Database, receipt: Receipt, content: bytes) -> None:
         connection.execute(
             f"INSERT INTO receipts ({COLUMNS}, content) VALUES ({', '.join(['?'] * (len(FIELD_NAMES) + 1))})",
             (*receipt.row(), zlib.compress(content) if content else b""),
@@ -215,8 +202,8 @@ class Journal:
     def page(self, limit: int, offset: int) -> tuple[list[Receipt], int]:
         """Receipts newest first, and how many there are in all."""
         with self._lock:
-            total = self._connection.execute("SELECT COUNT(*) FROM receipts").fetchone()[0]
-            rows = self._connection.execute(
+            total = self.database.execute("SELECT COUNT(*) FROM receipts").fetchone()[0]
+            rows = self.database.execute(
                 f"SELECT {COLUMNS} FROM receipts ORDER BY sequence DESC LIMIT ? OFFSET ?", (limit, offset)
             ).fetchall()
         return [Receipt(*row) for row in rows], total
@@ -224,7 +211,7 @@ class Journal:
     def entry(self, log_id: str) -> tuple[Receipt, bytes | None]:
         """A receipt and its content as received (None for a receipt from before the journal kept content)."""
         with self._lock:
-            row = self._connection.execute(
+            row = self.database.execute(
                 f"SELECT {COLUMNS}, content FROM receipts WHERE log_id = ?", (log_id,)
             ).fetchone()
         if row is None:
@@ -235,7 +222,7 @@ class Journal:
     def age_of(self, sequence: int) -> float:
         """Seconds since entry `sequence` was recorded (0 if there is no such entry)."""
         with self._lock:
-            row = self._connection.execute("SELECT recorded_at FROM receipts WHERE sequence = ?", (sequence,))
+            row = self.database.execute("SELECT recorded_at FROM receipts WHERE sequence = ?", (sequence,))
             found = row.fetchone()
         if found is None:
             return 0.0
@@ -244,12 +231,12 @@ class Journal:
 
     def head(self) -> int:
         with self._lock:
-            return self._head(self._connection)[0]
+            return self._head(self.database)[0]
 
     def entries_after(self, sequence: int, limit: int) -> list[JournalEntry]:
         """Up to `limit` entries after `sequence`, oldest first, content decompressed."""
         with self._lock:
-            rows = self._connection.execute(
+            rows = self.database.execute(
                 "SELECT sequence, action, content FROM receipts WHERE sequence > ? ORDER BY sequence LIMIT ?",
                 (sequence, limit),
             ).fetchall()
@@ -258,7 +245,7 @@ class Journal:
     def last_clearing(self) -> int:
         """The sequence of the newest clearing (0 when there was none): the store holds what came after it."""
         with self._lock:
-            found = self._connection.execute("SELECT MAX(sequence) FROM receipts WHERE action = 'delete_all'")
+            found = self.database.execute("SELECT MAX(sequence) FROM receipts WHERE action = 'delete_all'")
             return found.fetchone()[0] or 0
 
     def received_documents(self, batch_entries: int = 200) -> Iterator[bytes]:
@@ -272,65 +259,62 @@ class Journal:
 
     def verify(self, *, deep: bool = False) -> Verification:
         """Recompute every hash and link, oldest first (and with `deep`, every content's hash); report the
-        first receipt where the chain fails. Runs under the lock, so it checks one consistent state."""
+        first receipt where the chain fails. Reads one consistent state, in batches (a whole journal's content
+        would not fit in memory)."""
         check = ChainCheck()
         columns = f"{COLUMNS}, content" if deep else COLUMNS
-        with self._lock:
-            for row in self._connection.execute(f"SELECT {columns} FROM receipts ORDER BY sequence"):
-                receipt = Receipt(*row[: len(FIELD_NAMES)])
-                content_hash = hashlib.sha256(_inflate(row[-1])).hexdigest() if deep else None
-                check.add(receipt, content_hash)
+        query = f"SELECT {columns} FROM receipts WHERE sequence > ? ORDER BY sequence LIMIT {_ROWS_PER_VERIFY}"
+        with self._lock, self.database.reading():
+            position = 0
+            while rows := self.database.execute(query, (position,)).fetchall():
+                for row in rows:
+                    receipt = Receipt(*row[: len(FIELD_NAMES)])
+                    content_hash = hashlib.sha256(_inflate(row[-1])).hexdigest() if deep else None
+                    check.add(receipt, content_hash)
+                position = rows[-1][0]
         return Verification(check.count, check.first_broken, deep)
 
     def close(self) -> None:
         with self._lock:
-            self._connection.close()
-            if self._writers is not None:
-                self._writers.close()
+            self.database.close()
 
     # --- plumbing --------------------------------------------------------------------------------------
 
-    def _head(self, connection: sqlite3.Connection) -> tuple[int, str]:
+    def _head(self, connection: Database) -> tuple[int, str]:
         last = connection.execute("SELECT sequence, receipt_hash FROM receipts ORDER BY sequence DESC LIMIT 1")
         row = last.fetchone()
         return (row[0], row[1]) if row else (0, GENESIS_HASH)
 
-    def _epoch(self, connection: sqlite3.Connection) -> int:
+    def _epoch(self, connection: Database) -> int:
         row = connection.execute("SELECT value FROM journal_state WHERE name = 'epoch'").fetchone()
         return row[0] if row else 0
 
-    def _check_size(self, connection: sqlite3.Connection) -> None:
-        if not self.max_bytes or self.path is None:
-            return
-        pages, page_size = (connection.execute(f"PRAGMA {name}").fetchone()[0] for name in ("page_count", "page_size"))
-        if pages * page_size > self.max_bytes:
+    def _check_size(self) -> None:
+        if self.max_bytes and self.database.size_bytes() > self.max_bytes:
             raise StorageFull(
                 f"The journal would grow past {self.max_bytes} bytes (JOURNAL_MAX_BYTES); posts are refused until "
                 "the limit is raised or space is freed."
             )
 
     @contextmanager
-    def _transaction(self) -> Iterator[sqlite3.Connection]:
-        # IMMEDIATE takes the write lock up front, so even another process appending cannot fork the chain.
-        with self._writers.held() if self._writers is not None else nullcontext():
-            self._connection.execute("BEGIN IMMEDIATE")
-            try:
-                yield self._connection
-            except BaseException:
-                if self._connection.in_transaction:
-                    self._connection.execute("ROLLBACK")
-                raise
-            self._connection.execute("COMMIT")
+    def _transaction(self) -> Iterator[Database]:
+        with self.database.writing():
+            yield self.database
+
+    def ping(self) -> None:
+        """Raise StateUnavailable unless the journal's database answers."""
+        with self._lock:
+            self.database.ping()
 
     def storage_ok(self) -> bool:
-        """Whether the journal can take writes: True unless the last write failed for want of space and the
-        disk is still nearly full (so readiness recovers as soon as space returns, before the next post)."""
-        if self.storage_problem is None or self.path is None:
+        """Whether the journal can take writes: True unless the last write failed for want of space and there is
+        still none (so readiness recovers as soon as space returns, before the next post). A database whose
+        free space this server cannot see is taken to have room until a write says otherwise."""
+        if self.storage_problem is None:
             return True
-        return shutil.disk_usage(self.path.parent).free > FREE_BYTES_NEEDED and not self._over_quota()
-
-    def _over_quota(self) -> bool:
-        return bool(self.max_bytes) and self.path is not None and self.path.stat().st_size > self.max_bytes
+        free = self.database.free_bytes()
+        over_quota = bool(self.max_bytes) and self.database.size_bytes() > self.max_bytes
+        return (free is None or free > FREE_BYTES_NEEDED) and not over_quota
 
     @contextmanager
     def _storage_errors(self) -> Iterator[None]:
@@ -339,15 +323,14 @@ class Journal:
         except StorageFull as full:
             self.storage_problem = full.message
             raise
-        except sqlite3.OperationalError as error:
-            if "full" in str(error) or "disk I/O" in str(error):
-                where = self.path.parent if self.path else "memory"
-                self.storage_problem = f"the disk holding {where} is full ({error})"
-                raise StorageFull(
-                    f"The journal cannot grow: {self.storage_problem}. Posts are refused until space is freed; "
-                    "nothing of this post was kept."
-                ) from None
-            raise
+        except Exception as error:
+            if not self.database.out_of_space(error):
+                raise
+            self.storage_problem = f"the disk holding {self.database.where} is full ({error})"
+            raise StorageFull(
+                f"The journal cannot grow: {self.storage_problem}. Posts are refused until space is freed; "
+                "nothing of this post was kept."
+            ) from None
         self.storage_problem = None
 
 
@@ -359,7 +342,7 @@ def _inflate(blob: bytes | None) -> bytes:
     return zlib.decompress(blob) if blob else b""
 
 
-def _insert_new_digests(connection: sqlite3.Connection, digests: list[bytes]) -> set[bytes]:
+def _insert_new_digests(connection: Database, digests: list[bytes]) -> set[bytes]:
     """Insert the digests; return those that were not there yet (the database decides, atomically)."""
     new: set[bytes] = set()
     for start in range(0, len(digests), _ROWS_PER_INSERT):

@@ -19,7 +19,7 @@ from typing import IO, Literal, cast
 from pyoxigraph import NamedNode, Quad, RdfFormat, parse
 
 from segb_server.backend.auth import PermissionDenied
-from segb_server.backend.services.errors import InvalidParameter, ServiceError
+from segb_server.backend.services.errors import OUTAGES, InvalidParameter, ServiceError
 from segb_server.backend.services.ingest.applier import Applier
 from segb_server.backend.services.ingest.group_commit import GroupCommit
 from segb_server.backend.services.ingest.journal import Journal, PostEntry, triple_digest
@@ -27,7 +27,7 @@ from segb_server.backend.services.ingest.parsing import invalid_rdf, parse_quads
 from segb_server.backend.services.ingest.payloads import RdfPayload
 from segb_server.backend.services.ingest.receipts import Receipt
 from segb_server.backend.services.ingest.skolem import might_contain_blank_nodes
-from segb_server.backend.store.base import StoreError, StoreUnavailable
+from segb_server.backend.store.base import StoreUnavailable
 from segb_server.backend.store.terms import term_text
 
 logger = logging.getLogger("segb.ingest")
@@ -158,9 +158,9 @@ class IngestService:
             return
         try:
             self.applier.apply_pending()  # the poster applies what is pending itself: no hop to another thread
-        except StoreError as error:
+        except OUTAGES as error:
             raise NotYetApplied(
-                f"kept in the journal as log_id {receipt.log_id}, but the store is unavailable ({error}); it is "
+                f"kept in the journal as log_id {receipt.log_id}, but it could not be applied yet ({error}); it is "
                 "applied as soon as the store answers"
             ) from None
         if not self.applier.wait_for(receipt.sequence, self._apply_timeout):

@@ -6,6 +6,10 @@ reports' rows, the graph index) current is likewise one writer's job. With `segb
 worker accepts posts and serves reads; the one holding the lock on `DATA_DIR/leader.lock` also applies and
 keeps the views, and the others follow what it did. The lock is the operating system's (`flock`): it is
 released when its holder exits or is killed, and another worker takes over within a second.
+
+With the state in PostgreSQL (STATE_URL), API processes on several hosts share one journal and one store, so
+applying needs one doer among them all: `SharedLeadership`, an advisory lock in that database. Each host still
+keeps its own views (they live in its DATA_DIR), under its own `Leadership`.
 """
 
 from __future__ import annotations
@@ -13,9 +17,11 @@ from __future__ import annotations
 import logging
 import os
 import threading
+import time
 from pathlib import Path
+from typing import Any
 
-from segb_server.backend.services.ops.file_lock import FileLock
+from segb_server.backend.state.file_lock import FileLock
 
 logger = logging.getLogger("segb.leadership")
 
@@ -27,6 +33,7 @@ class Leadership:
 
     def __init__(self, path: Path | None) -> None:
         self.path = path
+        self.where = str(path)
         self._file: FileLock | None = None
         self._lock = threading.Lock()
         self._alone = path is None
@@ -58,3 +65,65 @@ class Leadership:
             if self._file is not None:
                 self._file.close()  # closing it releases the lock
                 self._file = None
+
+
+class SharedLeadership:
+    """Held by at most one process among all that share a PostgreSQL database: a session-level advisory lock,
+    released by the database as soon as its connection ends (the holder exits, is killed, or is cut off)."""
+
+    VERIFY_SECONDS = 0.5  # how often a holder checks its connection still holds the lock
+
+    def __init__(self, url: str, name: str) -> None:
+        from segb_server.backend.state.postgres import lock_key, redacted
+
+        self.url = url
+        self.where = f"the {name} lock of {redacted(url)}"
+        self._key = lock_key(f"leader:{name}")
+        self._connection: Any = None
+        self._verified = 0.0
+        self._lock = threading.Lock()
+
+    @property
+    def held(self) -> bool:
+        return self._connection is not None
+
+    def try_acquire(self) -> bool:
+        """Take the lock if it is free (never waits); True when this process holds it. A holder whose
+        connection was lost holds nothing any more (another process may have the lock): it tries again."""
+        from segb_server.backend.state.postgres import connect
+
+        with self._lock:
+            if self._connection is not None and self._still_held():
+                return True
+            try:
+                connection = connect(self.url)
+                row = connection.execute("SELECT pg_try_advisory_lock(%s)", (self._key,)).fetchone()
+                taken = bool(row and row[0])
+            except Exception as error:  # the database is away: nobody can lead through it just now
+                logger.warning("cannot reach %s (%s)", self.where, error)
+                return False
+            if not taken:
+                connection.close()
+                return False
+            self._connection, self._verified = connection, time.monotonic()
+        logger.info("this process (pid %d) holds %s: it applies the journal", os.getpid(), self.where)
+        return True
+
+    def _still_held(self) -> bool:
+        if time.monotonic() - self._verified < self.VERIFY_SECONDS:
+            return True
+        try:
+            self._connection.execute("SELECT 1")
+            self._verified = time.monotonic()
+            return True
+        except Exception:
+            logger.warning("lost %s with its connection", self.where)
+            self._connection.close()
+            self._connection = None
+            return False
+
+    def release(self) -> None:
+        with self._lock:
+            if self._connection is not None:
+                self._connection.close()
+                self._connection = None

@@ -21,7 +21,7 @@ from typing import Any, BinaryIO
 
 from segb_server.backend.config import Settings
 from segb_server.backend.services.clock import utc_iso
-from segb_server.backend.services.ops.file_lock import FileLock
+from segb_server.backend.state.file_lock import FileLock
 
 ROOT_LOGGER = "segb"
 LEVELS = ("DEBUG", "INFO", "WARNING", "ERROR", "CRITICAL")

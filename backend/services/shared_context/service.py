@@ -9,13 +9,13 @@ robots resolving the same event at once get one context.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 
 from segb_server.backend.services.clock import utc_iso
 from segb_server.backend.services.errors import Conflict, InvalidParameter, NotFound
 from segb_server.backend.services.shared_context.policy import MAX_CANDIDATES_PER_CASE, Policy, digest, slug
 from segb_server.backend.services.shared_context.scoring import Score, decisive, may_match, ranked, score
 from segb_server.backend.services.shared_context.state import Case, Context, ContextState, ObservationRow
+from segb_server.backend.state.database import Database
 
 
 @dataclass(frozen=True)
@@ -79,8 +79,8 @@ class SharedContextService:
         self.state = state
 
     @classmethod
-    def open(cls, policy: Policy, path: Path | None) -> SharedContextService:
-        return cls(policy, ContextState(path))
+    def open(cls, policy: Policy, database: Database) -> SharedContextService:
+        return cls(policy, ContextState(database))
 
     def close(self) -> None:
         self.state.close()

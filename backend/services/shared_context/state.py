@@ -1,24 +1,24 @@
-"""Where shared contexts live: a SQLite file beside the store (durable, transactional, one writer at a time)."""
+"""Where shared contexts live: the state database (backend/state), durable and transactional, one writer at a
+time across every process sharing it."""
 
 from __future__ import annotations
 
 import json
-import sqlite3
-import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import astuple, dataclass, fields
-from pathlib import Path
+
+from segb_server.backend.state.database import Database
 
 STATE_FILE = "shared-context.sqlite3"
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS contexts (
-    seq            INTEGER PRIMARY KEY,
+    seq            {serial},
     uri            TEXT NOT NULL UNIQUE,
     event_kind     TEXT NOT NULL,
     status         TEXT NOT NULL,
-    observed_at    REAL NOT NULL,
+    observed_at    {real} NOT NULL,
     subject        TEXT,
     modality       TEXT,
     canonical_text TEXT,
@@ -27,9 +27,9 @@ CREATE TABLE IF NOT EXISTS contexts (
 );
 CREATE INDEX IF NOT EXISTS contexts_by_time ON contexts (event_kind, observed_at);
 CREATE TABLE IF NOT EXISTS observations (
-    seq             INTEGER PRIMARY KEY,
+    seq             {serial},
     context_uri     TEXT NOT NULL,
-    observed_at     REAL NOT NULL,
+    observed_at     {real} NOT NULL,
     subject         TEXT,
     modality        TEXT,
     text            TEXT,
@@ -41,7 +41,7 @@ CREATE TABLE IF NOT EXISTS observations (
 CREATE INDEX IF NOT EXISTS observations_by_context ON observations (context_uri);
 CREATE TABLE IF NOT EXISTS aliases (source TEXT PRIMARY KEY, target TEXT NOT NULL);
 CREATE TABLE IF NOT EXISTS cases (
-    seq          INTEGER PRIMARY KEY,
+    seq          {serial},
     case_id      TEXT NOT NULL UNIQUE,
     source_uri   TEXT NOT NULL,
     status       TEXT NOT NULL,
@@ -110,43 +110,25 @@ def _placeholders(count: int) -> str:
 
 
 class ContextState:
-    """Blocking SQLite access; `transaction()` serialises writers, even across processes (BEGIN IMMEDIATE)."""
+    """Blocking access; `transaction()` serialises writers, even across processes and hosts."""
 
-    def __init__(self, path: Path | None) -> None:
-        if path is not None:
-            path.parent.mkdir(parents=True, exist_ok=True)
-        self._db = sqlite3.connect(
-            ":memory:" if path is None else str(path), isolation_level=None, check_same_thread=False, timeout=10
-        )
-        self._lock = threading.Lock()
-        if path is not None:
-            self._db.execute("PRAGMA journal_mode=WAL")
-        self._db.executescript(SCHEMA)
+    def __init__(self, database: Database) -> None:
+        self._db = database
+        database.script(SCHEMA)
 
     @contextmanager
     def transaction(self) -> Iterator[ContextState]:
-        with self._lock:
-            self._db.execute("BEGIN IMMEDIATE")
-            try:
-                yield self
-            except BaseException:
-                self._db.execute("ROLLBACK")
-                raise
-            self._db.execute("COMMIT")
+        with self._db.writing():
+            yield self
 
     @contextmanager
     def snapshot(self) -> Iterator[ContextState]:
         """Consistent reads without taking the write lock of other processes."""
-        with self._lock:
-            self._db.execute("BEGIN")
-            try:
-                yield self
-            finally:
-                self._db.execute("COMMIT")
+        with self._db.reading():
+            yield self
 
     def close(self) -> None:
-        with self._lock:
-            self._db.close()
+        self._db.close()
 
     # --- contexts ------------------------------------------------------------------------------------
 
@@ -181,7 +163,7 @@ class ContextState:
         return [Context(*row) for row in rows]
 
     def add_context(self, context: Context) -> None:
-        values = astuple(context)[1:]  # seq is assigned by SQLite
+        values = astuple(context)[1:]  # seq is assigned by the database
         self._db.execute(
             f"INSERT INTO contexts ({CONTEXT_COLUMNS.removeprefix('seq, ')}) VALUES ({_placeholders(len(values))})",
             values,
@@ -235,7 +217,11 @@ class ContextState:
     def add_alias(self, source: str, target: str) -> None:
         # Kept flat: whatever pointed at the source now points at the target, so one lookup always suffices.
         self._db.execute("UPDATE aliases SET target = ? WHERE target = ?", (target, source))
-        self._db.execute("INSERT OR REPLACE INTO aliases (source, target) VALUES (?, ?)", (source, target))
+        self._db.execute(
+            "INSERT INTO aliases (source, target) VALUES (?, ?) "
+            "ON CONFLICT (source) DO UPDATE SET target = excluded.target",
+            (source, target),
+        )
 
     def alias_count(self) -> int:
         return self._db.execute("SELECT COUNT(*) FROM aliases").fetchone()[0]
@@ -269,7 +255,9 @@ class ContextState:
         )
 
     def reject_pair(self, source: str, candidate: str) -> None:
-        self._db.execute("INSERT OR IGNORE INTO rejected_pairs (source, candidate) VALUES (?, ?)", (source, candidate))
+        self._db.execute(
+            "INSERT INTO rejected_pairs (source, candidate) VALUES (?, ?) ON CONFLICT DO NOTHING", (source, candidate)
+        )
 
     def rejected_candidates(self, source: str) -> set[str]:
         rows = self._db.execute("SELECT candidate FROM rejected_pairs WHERE source = ?", (source,))

@@ -11,9 +11,12 @@ work is mostly waiting for the store's answers (a round trip per query), so a ba
 slowest view rather than all of them added up. On the embedded store the same work is this process's own CPU,
 which the posts need too: the views take turns there.
 
-With several API processes on one data directory, only the one holding the leadership keeps the views (it is
-the one the applier's steps come from); the others follow the views it stores, which they read to answer.
-When the leader goes, the process that takes over catches the views up from the journal and keeps them.
+With several API processes on one data directory, only the one holding the data directory's leadership keeps
+the views; the others follow the views it stores, which they read to answer. When the leader goes, the
+process that takes over catches the views up from the journal and keeps them. The views' keeper is usually
+the applier too, and gets its steps as they are applied; on a host whose processes do not apply (the state is
+in PostgreSQL and another host's process applies), it reads them from the journal as the store's cursor
+advances.
 """
 
 from __future__ import annotations
@@ -26,12 +29,13 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Protocol
 
-from pyoxigraph import Quad, RdfFormat, parse
+from pyoxigraph import Quad
 
-from segb_server.backend.services.ingest.applier import Applied
+from segb_server.backend.services.errors import OUTAGES
+from segb_server.backend.services.ingest.applier import Applied, Applier, applied_steps, quads_of
 from segb_server.backend.services.ingest.journal import Journal
 from segb_server.backend.services.ops.leadership import Leadership
-from segb_server.backend.store.base import Store, StoreError
+from segb_server.backend.store.base import Store
 
 logger = logging.getLogger("segb.views")
 
@@ -75,12 +79,20 @@ class _Marker:
 
 class Projector:
     def __init__(
-        self, store: Store, journal: Journal, projections: list[Projection], leadership: Leadership | None = None
+        self,
+        store: Store,
+        journal: Journal,
+        projections: list[Projection],
+        leadership: Leadership | None = None,
+        applier: Applier | None = None,
     ) -> None:
+        """`applier`: the process's applier, when the views' leadership is not its (then, while it does not
+        apply, the views read what it saw applied from the journal)."""
         self.store = store
         self.journal = journal
         self.projections = projections
         self.leadership = leadership or Leadership(None)
+        self._applier = applier if applier is not None and applier.leadership is not self.leadership else None
         self._queue: queue.Queue[Applied | _Marker | None] = queue.Queue()
         self._thread: threading.Thread | None = None
         self._stopping = threading.Event()  # ends retry waits too: a store that never returns must not hold shutdown
@@ -132,7 +144,7 @@ class Projector:
     # --- the thread ----------------------------------------------------------------------------------
 
     def _run(self) -> None:
-        while not self.leadership.held:  # the applier's thread takes the lead when it is free
+        while not self.leadership.try_acquire():
             self._follow()
             if self._stopping.wait(FOLLOW_SECONDS):
                 return
@@ -140,15 +152,13 @@ class Projector:
             try:
                 self._prepare_all()
                 break
-            except StoreError as error:
+            except OUTAGES as error:
                 self.last_error = str(error)
                 logger.warning("building the views failed (%s); retrying", error)
                 if self._stopping.wait(2):
                     return
         while True:
-            steps: list[Applied | _Marker | None] = [self._queue.get()]
-            while not self._queue.empty() and len(steps) < BATCH_STEPS:
-                steps.append(self._queue.get())
+            steps = self._next_steps()
             if any(step is None for step in steps):
                 return
             applied = [step for step in steps if isinstance(step, Applied)]
@@ -161,6 +171,41 @@ class Projector:
             if applied and self._stopping.wait(min(MAX_REST_SECONDS, REST_RATIO * (time.monotonic() - began))):
                 return
 
+    def _next_steps(self) -> list[Applied | _Marker | None]:
+        """What to do next: what the applier queued, or (where another process applies) what the journal holds
+        up to the store's cursor."""
+        try:
+            steps: list[Applied | _Marker | None] = [
+                self._queue.get(timeout=None if self._applier is None else FOLLOW_SECONDS)
+            ]
+        except queue.Empty:
+            return list(self._pulled())
+        while not self._queue.empty() and len(steps) < BATCH_STEPS:
+            steps.append(self._queue.get())
+        return steps
+
+    def _pulled(self) -> list[Applied]:
+        assert self._applier is not None
+        if self._applier.leadership.held:
+            return []  # this process applies: its steps come through the queue
+        behind = self._applier.applied - self.through
+        if behind <= 0:
+            return []
+        try:
+            return applied_steps(self.journal.entries_after(self.through, min(behind, BATCH_STEPS)))
+        except OUTAGES as error:  # read again at the next turn
+            self.last_error = str(error)
+            return []
+
+    def _read_back(self, before: int) -> list[Applied]:
+        """The journal's entries after the views' and before `before`, as steps; from the last clearing when
+        one is among them (what came earlier, it removed)."""
+        start = self.through
+        cleared = self.journal.last_clearing()
+        if start < cleared < before:
+            start = cleared - 1
+        return applied_steps(self.journal.entries_after(start, before - 1 - start))
+
     def _process_retrying(self, applied: list[Applied]) -> bool:
         """Process `applied`, retrying while the store is away; False when stopped meanwhile."""
         while True:
@@ -168,7 +213,7 @@ class Projector:
                 self._process(applied)
                 self.last_error = None
                 return True
-            except StoreError as error:
+            except OUTAGES as error:
                 self.last_error = str(error)
                 logger.warning("keeping the views current failed (%s); retrying", error)
                 if self._stopping.wait(1):
@@ -218,10 +263,15 @@ class Projector:
         if any(entry.action == "delete_all" for entry in entries):
             self._build(projection, current)
             return
-        quads = [quad for entry in entries if entry.content for quad in parse(entry.content, RdfFormat.N_TRIPLES)]
-        projection.update(quads, current)
+        projection.update(quads_of(entries), current)
 
     def _process(self, steps: list[Applied]) -> None:
+        steps = [step for step in steps if step.entries[-1].sequence > self.through]  # already read from the journal
+        if not steps:
+            return
+        first = steps[0].entries[0].sequence
+        if first > self.through + 1:  # applied by another process before this one took over: read them back
+            steps = [*self._read_back(first), *steps]
         through = steps[-1].entries[-1].sequence
         cleared = max((index for index, step in enumerate(steps) if step.cleared), default=-1)
         if cleared >= 0:

@@ -1,0 +1,74 @@
+"""SQLite, the default: a file in DATA_DIR (WAL mode), or memory for a server meant to keep nothing."""
+
+from __future__ import annotations
+
+import shutil
+import sqlite3
+from collections.abc import Sequence
+from contextlib import AbstractContextManager, nullcontext
+from pathlib import Path
+
+from segb_server.backend.state.database import Database, Rows
+from segb_server.backend.state.file_lock import FileLock
+
+TYPES = {"serial": "INTEGER PRIMARY KEY", "blob": "BLOB", "real": "REAL", "without_rowid": "WITHOUT ROWID"}
+
+
+class SqliteDatabase(Database):
+    kind = "sqlite"
+
+    def __init__(self, path: Path | None, *, sync_full: bool = False) -> None:
+        super().__init__()
+        self.path = path
+        self.where = str(path.parent) if path is not None else "memory"
+        if path is not None:
+            path.parent.mkdir(parents=True, exist_ok=True)
+        self._connection = sqlite3.connect(
+            ":memory:" if path is None else str(path), isolation_level=None, check_same_thread=False, timeout=30
+        )
+        # Writers of other processes (API workers) queue on this lock, which wakes the next one as soon as it is
+        # released; SQLite's own busy wait sleeps in steps of up to 100 ms.
+        self._writers = None if path is None else FileLock(path.with_name(f"{path.name}.lock"))
+        if path is not None:
+            # WAL: a commit is durable across a crash of the server process. NORMAL sync leaves the newest
+            # commits to the operating system's cache on a power cut; FULL syncs every commit (slower).
+            self._connection.execute("PRAGMA journal_mode=WAL")
+            self._connection.execute(f"PRAGMA synchronous={'FULL' if sync_full else 'NORMAL'}")
+
+    # IMMEDIATE takes SQLite's write lock up front: even a writer of another process cannot interleave.
+    begin_writing = "BEGIN IMMEDIATE"
+
+    def execute(self, sql: str, params: Sequence[object] = ()) -> Rows:
+        with self._lock:
+            return self._connection.execute(sql, params)
+
+    def render(self, schema: str) -> str:
+        return schema.format(**TYPES)
+
+    def columns(self, table: str) -> set[str]:
+        return {row[1] for row in self.execute(f"PRAGMA table_info({table})")}
+
+    def _writers_queue(self) -> AbstractContextManager[object]:
+        return self._writers.held() if self._writers is not None else nullcontext()
+
+    def rollback(self) -> None:
+        with self._lock:
+            if self._connection.in_transaction:
+                self._connection.execute("ROLLBACK")
+
+    def size_bytes(self) -> int:
+        # Pages, not the file's size: inside a transaction they count what it is about to add.
+        pages, page_size = (self.execute(f"PRAGMA {name}").fetchone()[0] for name in ("page_count", "page_size"))
+        return int(pages * page_size)
+
+    def free_bytes(self) -> int | None:
+        return None if self.path is None else shutil.disk_usage(self.path.parent).free
+
+    def out_of_space(self, error: BaseException) -> bool:
+        return isinstance(error, sqlite3.OperationalError) and ("full" in str(error) or "disk I/O" in str(error))
+
+    def close(self) -> None:
+        with self._lock:
+            self._connection.close()
+            if self._writers is not None:
+                self._writers.close()
