@@ -41,8 +41,9 @@ class Database(ABC):
         """Run one statement (in the current transaction, if any) and return its rows."""
 
     def script(self, schema: str) -> None:
-        """Create what `schema` declares (re-runnable: `CREATE … IF NOT EXISTS`)."""
-        with self._lock:
+        """Create what `schema` declares (re-runnable: `CREATE … IF NOT EXISTS`), as one writer: processes
+        starting together would otherwise race to create the same table (PostgreSQL then fails one of them)."""
+        with self.writing():
             for statement in self.render(schema).split(";"):
                 if statement.strip():
                     self.execute(statement)

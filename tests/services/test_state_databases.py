@@ -56,6 +56,22 @@ def post(robot: int, number: int) -> PostEntry:
                      [triple_digest(line) for line in lines])  # fmt: skip
 
 
+def test_processes_starting_together_create_the_tables_once(open_database: OpenDatabase) -> None:
+    """API workers start at the same moment, each creating the tables it needs if they are not there."""
+    start = threading.Barrier(8)
+
+    def open_state(call: int) -> None:
+        journal_database, contexts_database = open_database("journal"), open_database("contexts")
+        start.wait()
+        Journal(journal_database)
+        SharedContextService.open(Policy.from_settings(make_settings()), contexts_database)
+
+    with ThreadPoolExecutor(8) as pool:
+        list(pool.map(open_state, range(8)))  # raises what any of them raised
+    [receipt] = Journal(open_database("journal")).append_posts([post(1, 1)])
+    assert not isinstance(receipt, BaseException) and receipt.sequence == 1
+
+
 def test_appenders_in_several_processes_extend_one_chain_and_keep_each_triple_once(
     open_database: OpenDatabase,
 ) -> None:

@@ -113,10 +113,11 @@ class Journal:
         self.storage_problem: str | None = None  # why the last write failed for want of space, until one works
         with self._lock:
             database.script(SCHEMA)
-            present = database.columns("receipts")
-            for column, kind in ADDED_COLUMNS.items():
-                if column not in present:
-                    database.execute(f"ALTER TABLE receipts ADD COLUMN {column} {database.render(kind)}")
+            with database.writing():
+                present = database.columns("receipts")
+                for column, kind in ADDED_COLUMNS.items():
+                    if column not in present:
+                        database.execute(f"ALTER TABLE receipts ADD COLUMN {column} {database.render(kind)}")
 
     # --- writing ---------------------------------------------------------------------------------------
 

@@ -69,7 +69,10 @@ class Leadership:
 
 class SharedLeadership:
     """Held by at most one process among all that share a PostgreSQL database: a session-level advisory lock,
-    released by the database as soon as its connection ends (the holder exits, is killed, or is cut off)."""
+    released by the database as soon as its connection ends (the holder exits, is killed, or is cut off).
+
+    The connection stays open between attempts: a follower asks on every wake of its applier (and, with
+    INGEST_ACK=store, on every post), and a new PostgreSQL connection costs a server process."""
 
     VERIFY_SECONDS = 0.5  # how often a holder checks its connection still holds the lock
 
@@ -80,34 +83,42 @@ class SharedLeadership:
         self.where = f"the {name} lock of {redacted(url)}"
         self._key = lock_key(f"leader:{name}")
         self._connection: Any = None
+        self._holding = False
         self._verified = 0.0
+        self._unreachable = False  # said once in the log, until it answers again
         self._lock = threading.Lock()
 
     @property
     def held(self) -> bool:
-        return self._connection is not None
+        return self._holding
 
     def try_acquire(self) -> bool:
         """Take the lock if it is free (never waits); True when this process holds it. A holder whose
         connection was lost holds nothing any more (another process may have the lock): it tries again."""
-        from segb_server.backend.state.postgres import connect
-
         with self._lock:
-            if self._connection is not None and self._still_held():
+            if self._holding and self._still_held():
                 return True
             try:
-                connection = connect(self.url)
-                row = connection.execute("SELECT pg_try_advisory_lock(%s)", (self._key,)).fetchone()
-                taken = bool(row and row[0])
+                row = self._connected().execute("SELECT pg_try_advisory_lock(%s)", (self._key,)).fetchone()
             except Exception as error:  # the database is away: nobody can lead through it just now
-                logger.warning("cannot reach %s (%s)", self.where, error)
+                self._drop_connection()
+                if not self._unreachable:
+                    logger.warning("cannot reach %s (%s)", self.where, error)
+                self._unreachable = True
                 return False
-            if not taken:
-                connection.close()
+            self._unreachable = False
+            if not (row and row[0]):
                 return False
-            self._connection, self._verified = connection, time.monotonic()
+            self._holding, self._verified = True, time.monotonic()
         logger.info("this process (pid %d) holds %s: it applies the journal", os.getpid(), self.where)
         return True
+
+    def _connected(self) -> Any:
+        from segb_server.backend.state.postgres import connect
+
+        if self._connection is None or self._connection.closed or self._connection.broken:
+            self._connection = connect(self.url)
+        return self._connection
 
     def _still_held(self) -> bool:
         if time.monotonic() - self._verified < self.VERIFY_SECONDS:
@@ -118,12 +129,15 @@ class SharedLeadership:
             return True
         except Exception:
             logger.warning("lost %s with its connection", self.where)
+            self._drop_connection()
+            return False
+
+    def _drop_connection(self) -> None:
+        self._holding = False
+        if self._connection is not None:
             self._connection.close()
             self._connection = None
-            return False
 
     def release(self) -> None:
         with self._lock:
-            if self._connection is not None:
-                self._connection.close()
-                self._connection = None
+            self._drop_connection()
