@@ -68,6 +68,14 @@ def _parser() -> argparse.ArgumentParser:
     _store_options(rebuild)
     rebuild.set_defaults(handler=_rebuild)
 
+    copy_state = commands.add_parser(
+        "copy-state",
+        help="copy the journal and shared contexts into a PostgreSQL database, to run with STATE_URL from then on",
+    )
+    copy_state.add_argument("--data-dir", type=Path, help="the server's directory (DATA_DIR; default ./data)")
+    copy_state.add_argument("--to", required=True, metavar="POSTGRESQL_URL", help="postgresql://user:password@host/db")
+    copy_state.set_defaults(handler=_copy_state)
+
     load = commands.add_parser("import", help="load Turtle (.ttl) or N-Triples (.nt) files into the store")
     _store_options(load)
     load.add_argument("files", nargs="+", type=Path, metavar="FILE", help="a .ttl or .nt file (several may follow)")
@@ -207,6 +215,56 @@ def _rebuild(args: argparse.Namespace) -> int:
         )
         applied = services.applier.apply_pending()
         print(f"{store.kind} store rebuilt from the journal through entry {applied}: {store.count()} triples")
+    return 0
+
+
+def _copy_state(args: argparse.Namespace) -> int:
+    from segb_server.backend.services.ingest.journal import JOURNAL_FILE, Journal
+    from segb_server.backend.services.ops.leadership import LOCK_FILE, Leadership
+    from segb_server.backend.services.shared_context.state import STATE_FILE, ContextState
+    from segb_server.backend.state.copying import CONTEXT_TABLES, JOURNAL_TABLES, TargetNotEmpty, copy_tables
+    from segb_server.backend.state.opening import open_state
+    from segb_server.backend.state.postgres import PostgresDatabase, redacted
+
+    settings = _settings(args)
+    if not args.to.startswith(("postgresql://", "postgres://")):
+        return _fail("--to must be a postgresql:// URL")
+    if settings.state_url == args.to:
+        return _fail("the state is already in that database (STATE_URL)")
+    journal_file = settings.data_dir / JOURNAL_FILE
+    if not settings.state_url and not journal_file.is_file():
+        return _fail(f"no journal to copy: {journal_file} does not exist")
+    server = Leadership(settings.data_dir / LOCK_FILE)
+    if not server.try_acquire():
+        return _fail(f"a server is running on {settings.data_dir} (it holds {LOCK_FILE}): stop it first")
+    try:
+        parts = (
+            (JOURNAL_FILE, "journal", JOURNAL_TABLES, Journal),
+            (STATE_FILE, "contexts", CONTEXT_TABLES, ContextState),
+        )
+        for file, writers, tables, keeper in parts:
+            source = open_state(settings.state_url, settings.data_dir / file, writers=writers)
+            target = PostgresDatabase(args.to, writers=writers)
+            try:
+                keeper(target)  # creates the tables, as a server would
+                copied = copy_tables(source, target, tables)
+            finally:
+                source.close()
+                target.close()
+            print(f"{writers}: " + ", ".join(f"{rows} rows of {table}" for table, rows in copied.items()))
+        journal = Journal(PostgresDatabase(args.to, writers="journal"))
+        verification = journal.verify(deep=True)
+        journal.close()
+    except TargetNotEmpty as error:
+        return _fail(f"{error}: copy into a new, empty database")
+    finally:
+        server.release()
+    if not verification.valid:
+        return _fail(f"the copy does not verify: {verification.first_broken}")
+    print(
+        f"the copy verifies: {verification.receipts} receipts, content included. "
+        f"Start the server with STATE_URL={redacted(args.to)} (and its password)."
+    )
     return 0
 
 

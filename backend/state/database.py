@@ -107,6 +107,10 @@ class Database(ABC):
     def out_of_space(self, error: BaseException) -> bool:
         """Whether `error` says the database could not grow."""
 
+    def continue_serials(self, table: str) -> None:
+        """After rows were inserted with their keys given, make the keys the database assigns follow them."""
+        return None
+
     def ping(self) -> None:
         """Raise StateUnavailable unless the database answers."""
         self.execute("SELECT 1").fetchone()

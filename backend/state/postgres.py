@@ -91,6 +91,18 @@ class PostgresDatabase(Database):
         # Released by the transaction's end, committed or not; a waiting writer is woken at once.
         self.execute("SELECT pg_advisory_xact_lock(?)", (self._writers_key,))
 
+    def continue_serials(self, table: str) -> None:
+        identities = self.execute(
+            "SELECT column_name FROM information_schema.columns WHERE table_schema = current_schema() "
+            "AND table_name = ? AND is_identity = 'YES'",
+            (table,),
+        ).fetchall()
+        for (column,) in identities:
+            self.execute(
+                f"SELECT setval(pg_get_serial_sequence('{table}', '{column}'), COALESCE(MAX({column}), 0) + 1, false) "
+                f"FROM {table}"
+            )
+
     def rollback(self) -> None:
         with self._lock:
             connection = self._connection
