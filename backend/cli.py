@@ -17,6 +17,7 @@ from tqdm import tqdm
 
 from segb_server.backend.config import Settings
 from segb_server.backend.services.errors import ServiceError
+from segb_server.backend.state.database import StateUnavailable
 from segb_server.backend.store.base import StoreError
 
 if TYPE_CHECKING:  # the services are imported by the commands that need them, not whenever the CLI starts
@@ -32,7 +33,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return args.handler(args)
     except ValidationError as error:
         return _fail(f"invalid setting: {_settings_problem(error)}")
-    except (ServiceError, StoreError) as error:
+    except (ServiceError, StoreError, StateUnavailable) as error:
         return _fail(str(error))
     except KeyboardInterrupt:
         return 130

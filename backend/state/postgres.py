@@ -62,19 +62,26 @@ class PostgresDatabase(Database):
 
     def _connect(self) -> psycopg.Connection[Any]:
         if self._connection is None or self._connection.closed or self._connection.broken:
-            self._connection = connect(self.url)
+            try:
+                self._connection = connect(self.url)
+            except psycopg.OperationalError as error:
+                raise self._unavailable(error) from None
         return self._connection
+
+    def _unavailable(self, error: Exception) -> StateUnavailable:
+        return StateUnavailable(f"The state database ({self.where}) is unavailable: {str(error).strip()}")
 
     def execute(self, sql: str, params: Sequence[object] = ()) -> Rows:
         with self._lock:
+            connection = self._connect()
             try:
-                return self._connect().execute(sql.replace("?", "%s"), params or None)
+                return connection.execute(sql.replace("?", "%s"), params or None)
             except errors.DiskFull:
                 raise  # the journal says so in its own words (StorageFull)
-            except psycopg.OperationalError as error:  # connecting failed, or the server went away
-                if self._connection is not None and not self._connection.broken and not self._connection.closed:
-                    raise
-                raise StateUnavailable(f"The state database ({self.where}) is unavailable: {error}".strip()) from None
+            except psycopg.OperationalError as error:
+                if connection.broken or connection.closed:  # the server went away, or the network
+                    raise self._unavailable(error) from None
+                raise
 
     def render(self, schema: str) -> str:
         return schema.format(**TYPES)

@@ -13,6 +13,7 @@ from tests.cli.test_cli import segb
 from tests.conftest import make_settings
 from tests.faults.test_crashes import all_receipts, post_turtle
 from tests.support.live_server import LiveServer
+from tests.support.net import free_port
 
 pytestmark = pytest.mark.postgres
 
@@ -69,3 +70,14 @@ def test_the_state_moves_into_postgresql_and_the_server_goes_on_from_it(tmp_path
         assert same["shared_context_uri"] == context and same["status"] == "matched"
         other = resolve(live.url, {**OBSERVATION, "observed_at": "2026-05-05T10:00:00+00:00"})
         assert other["status"] == "created" and other["shared_context_uri"] != context  # new keys follow the copied
+
+
+def test_copying_into_a_database_that_does_not_answer_fails_naming_it(tmp_path: Path) -> None:
+    data_dir = tmp_path / "data"
+    with LiveServer(create_app(make_settings(store="oxigraph", data_dir=data_dir))) as live:
+        post(live.url, 1, 0)
+    unreachable = f"postgresql://segb@127.0.0.1:{free_port()}/segb"
+    refused = segb("copy-state", "--data-dir", str(data_dir), "--to", unreachable)
+    assert refused.returncode == 2
+    assert "The state database (postgresql://segb@127.0.0.1:" in refused.stderr and "is unavailable" in refused.stderr
+    assert "Traceback" not in refused.stderr
