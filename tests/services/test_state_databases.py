@@ -58,16 +58,16 @@ def post(robot: int, number: int) -> PostEntry:
 
 def test_processes_starting_together_create_the_tables_once(open_database: OpenDatabase) -> None:
     """API workers start at the same moment, each creating the tables it needs if they are not there."""
-    start = threading.Barrier(8)
+    connections = [(open_database("journal"), open_database("contexts")) for _ in range(8)]
+    start = threading.Barrier(len(connections), timeout=60)  # a thread that failed must not hold the others
 
-    def open_state(call: int) -> None:
-        journal_database, contexts_database = open_database("journal"), open_database("contexts")
+    def open_state(databases: tuple[Database, Database]) -> None:
         start.wait()
-        Journal(journal_database)
-        SharedContextService.open(Policy.from_settings(make_settings()), contexts_database)
+        Journal(databases[0])
+        SharedContextService.open(Policy.from_settings(make_settings()), databases[1])
 
-    with ThreadPoolExecutor(8) as pool:
-        list(pool.map(open_state, range(8)))  # raises what any of them raised
+    with ThreadPoolExecutor(len(connections)) as pool:
+        list(pool.map(open_state, connections))  # raises what any of them raised
     [receipt] = Journal(open_database("journal")).append_posts([post(1, 1)])
     assert not isinstance(receipt, BaseException) and receipt.sequence == 1
 
