@@ -16,7 +16,7 @@ from segb_server.backend.services.shared_context.service import SharedContextSer
 from segb_server.backend.services.shared_context.state import STATE_FILE
 from segb_server.backend.services.sparql.catalog import Catalog
 from segb_server.backend.services.sparql.runner import QueryRunner, query_runner
-from segb_server.backend.services.views.explain import ExplainService
+from segb_server.backend.services.views.explain import TOLD_LITERALS, ExplainService
 from segb_server.backend.services.views.graph import GraphService
 from segb_server.backend.services.views.graph_index import GraphIndex
 from segb_server.backend.services.views.materialized.maintainer import ReportMaintainer
@@ -64,7 +64,7 @@ class Services:
     def close(self) -> None:
         self.applier.stop()
         self.views.stop()
-        self.graph.index.close()
+        self.graph.close()
         if self.reports.maintainer is not None:
             self.reports.maintainer.rows.close()
         self.queries.close()
@@ -100,7 +100,7 @@ def build_services(
     maintainer = ReportMaintainer(store, ReportRows(None if in_memory else settings.data_dir / REPORTS_FILE))
     for query in catalog.under(REPORTS_FOLDER):
         maintainer.add(query)
-    index = GraphIndex(store, None if in_memory else settings.data_dir / GRAPH_FILE)
+    index = GraphIndex(store, None if in_memory else settings.data_dir / GRAPH_FILE, detail_literals=TOLD_LITERALS)
     views = Projector(store, journal, [*maintainer.reports.values(), index], views_leadership, applier)
     applier.on_applied(views.on_applied)
     graph = GraphService(catalog, store, index, wait_ready=lambda timeout: views.wait_for(0, timeout))

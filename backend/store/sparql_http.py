@@ -28,6 +28,7 @@ from segb_server.backend.store.terms import bind_values, term_text
 logger = logging.getLogger("segb.store")
 
 RESULTS_JSON = "application/sparql-results+json"
+RESULTS_XML = "application/sparql-results+xml"
 N_TRIPLES = "application/n-triples"
 WRITE_BATCH_TRIPLES = 500  # well under Virtuoso's SP031 limit, and measured fastest there
 # A time-limited query waits this much longer than its limit over HTTP, so a store that enforces the limit
@@ -41,6 +42,9 @@ class SparqlHttpStore:
     kind = "sparql"
     wraps_values = False
     remote = True
+    # How SELECT and ASK answers are asked for and read: JSON, which every SPARQL 1.1 store writes.
+    results_media_type = RESULTS_JSON
+    results_format = QueryResultsFormat.JSON
 
     def __init__(
         self,
@@ -147,7 +151,7 @@ class SparqlHttpStore:
             raise StoreRejectedQuery("not a SELECT, CONSTRUCT, ASK or DESCRIBE query")
         graph_form = form in ("construct", "describe")
         data = self._query_params(sparql, dataset)
-        headers = {"Accept": N_TRIPLES if graph_form else RESULTS_JSON}
+        headers = {"Accept": N_TRIPLES if graph_form else self.results_media_type}
         body: bytes | _ByteStream
         if timeout is None:
             response = self._send(self.query_endpoint, data=data, headers=headers)
@@ -157,7 +161,7 @@ class SparqlHttpStore:
             body = self._open_stream({**data, **self._timeout_params(timeout)}, headers, timeout)
         if graph_form:
             return iter(quad.triple for quad in parse(_readable(body), RdfFormat.N_TRIPLES))
-        result = parse_query_results(_readable(body), QueryResultsFormat.JSON)
+        result = parse_query_results(_readable(body), self.results_format)
         if form == "ask" and isinstance(result, QuerySolutions):
             # Virtuoso 7 answers ASK as a one-column SELECT (`__ASK_RETVAL`), one row when the answer is true.
             truth = any(getattr(row[0], "value", "1") not in ("0", "false") for row in result)

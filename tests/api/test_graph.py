@@ -2,14 +2,19 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import httpx
 import pytest
 
 from segb_server.backend.config import PACKAGE_ROOT
 from segb_server.backend.services.sparql.catalog import Catalog
-from segb_server.backend.services.views.explain import FOLLOWED_INCOMING
+from segb_server.backend.services.views.explain import FOLLOWED_INCOMING, TOLD_LITERALS, ExplainService
 from segb_server.backend.services.views.graph import GraphService
-from segb_server.backend.store.base import Store
+from segb_server.backend.services.views.graph_index import GraphIndex
+from segb_server.backend.store.base import Store, select
+from tests.api.test_ingest_client import FIXTURE_FILES
+from tests.conftest import FIXTURES
 from tests.support.live_server import LiveServer
 from tests.support.scenarios import keep_busy, lobby
 
@@ -143,3 +148,36 @@ def test_resources_read_together_equal_each_read_alone(api: LiveServer, store: S
     described = graph.resources(iris)
     assert sum(len(node["incoming"]) for node in described.values()) > 0  # type: ignore[arg-type]
     assert described[str(scenario.iris["juan_1"])]["label"] == "Where is the pharmacy?"
+
+
+def test_explanations_from_the_graph_index_equal_those_from_the_store(
+    api: LiveServer, store: Store, tmp_path: Path
+) -> None:
+    """Once built, the graph index stands in for the store when an explanation reads its nodes: every story it
+    tells must be the one the store's own statements tell, for every resource of the scenario and of the
+    client's fixtures (versions, confidences and intensities included)."""
+    lobby().publish_all(api.url)
+    for name in FIXTURE_FILES:
+        text = (FIXTURES / name).read_text(encoding="utf-8")
+        assert (
+            httpx.post(f"{api.url}/ttl", json={"ttl_content": text, "user": "fixtures"}, timeout=60).status_code == 201
+        )
+    catalog = Catalog(PACKAGE_ROOT / "sparql")
+    index = GraphIndex(store, tmp_path / "graph.sqlite3", detail_literals=TOLD_LITERALS)
+    index.build(through=0)
+    index.ready = True
+    from_index = ExplainService(GraphService(catalog, store, index, lambda _: True))
+    unbuilt = GraphIndex(store, tmp_path / "unbuilt.sqlite3")
+    from_store = ExplainService(GraphService(catalog, store, unbuilt, lambda _: False))
+    subjects = select(store, "SELECT DISTINCT ?s WHERE { ?s ?p ?o FILTER isIRI(?s) }").rows
+    told = 0
+    for row in subjects:
+        iri = row["s"].value
+        expected = from_store.explain(iri)
+        assert from_index.explain(iri) == expected, iri
+        told += bool(expected["steps"])
+    assert told > 50
+    models = [m for row in subjects for step in from_index.explain(row["s"].value)["steps"] for m in step["models"]]
+    assert any(model["version"] for model in models)
+    index.close()
+    unbuilt.close()

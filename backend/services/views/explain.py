@@ -4,9 +4,10 @@ From the seed, the walk goes backwards along what triggered each activity (`segb
 `segb:triggeredByEntity`, the activity that generated a triggering message, `prov:wasDerivedFrom`) and
 forwards along what it triggered, then tells each activity as one step of a story in time order: who
 performed it, what was heard or said, which models it used, which emotions it read, which shared event
-and human it was about. Nodes are read with `GraphService.resources`, a batch at a time (two bound queries
-for every node the walk may read next), so an explanation costs a round trip per step of its walk whatever
-the size of the store: ten queries for a reply on Virtuoso, where one per node took 38.
+and human it was about. Nodes are read with `GraphService.summaries`, a batch at a time (every node the walk may
+read next): from the graph index, which keeps the links and the literals told here (`TOLD_LITERALS`), so an
+explanation costs a few indexed SQLite queries whatever the size or load of the store; from the store (two
+bound queries a batch) while the index is first built.
 """
 
 from __future__ import annotations
@@ -53,6 +54,10 @@ FEATURE_OF_INTEREST = SOSA + "hasFeatureOfInterest"
 FOLLOWED_INCOMING = frozenset({
     PRODUCED, GENERATED, WAS_GENERATED_BY, HAS_EMOTION, TRIGGERED_BY_ACTIVITY, TRIGGERED_BY_ENTITY, INTERMEDIATE,
     DERIVED_FROM, FEATURE_OF_INTEREST,
+})  # fmt: skip
+# The literals a story tells besides names and times (which the graph index keeps anyway).
+TOLD_LITERALS = frozenset({
+    RDFS + "label", SCHEMA + "text", SCHEMA + "version", ONYX + "hasEmotionIntensity", ONYX + "algorithmConfidence",
 })  # fmt: skip
 MAX_ACTIVITIES = 40
 MAX_DEPTH = 6
@@ -116,8 +121,10 @@ class ExplainService:
         """The story around `iri`; blocking (store I/O)."""
         reader = _Reader(self.graph)
         seed = reader.get(iri)
-        if not seed.body["outgoing"] and not self.graph.resource(iri, incoming_limit=1)["incoming"]:
-            raise NotFound(f"Nothing is known about <{iri}>.")
+        if not seed.body["outgoing"]:  # perhaps only literals the summary leaves out: the store decides
+            known = self.graph.resource(iri, incoming_limit=1)
+            if not known["outgoing"] and not known["incoming"]:
+                raise NotFound(f"Nothing is known about <{iri}>.")
         seed_activities = reader.activities_of(seed)
         order = self._walk(reader, seed_activities)
         steps = [reader.step(activity) for activity in order]
@@ -164,7 +171,7 @@ class _Reader:
     def get(self, iri: str) -> Resource:
         if iri not in self.cache:
             batch = [iri, *(linked for linked in self.linked if linked != iri)][:PREFETCH]
-            for body in self.graph.resources(batch, incoming=FOLLOWED_INCOMING).values():
+            for body in self.graph.summaries(batch, incoming=FOLLOWED_INCOMING).values():
                 self._add(Resource(body))
         return self.cache[iri]
 

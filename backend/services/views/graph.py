@@ -9,6 +9,7 @@ cost does not grow with the log. Literals only name and place nodes; the rest ar
 from __future__ import annotations
 
 from collections.abc import Callable, Collection, Sequence
+from concurrent.futures import ThreadPoolExecutor
 
 from pyoxigraph import Literal, NamedNode
 
@@ -34,6 +35,7 @@ __all__ = ["MAX_NODES", "GraphRequest", "GraphService", "local_name", "parse_typ
 MAX_NODES = 20_000
 INCOMING_LIMIT = 500  # statements pointing at one resource, read at once
 READY_WAIT_SECONDS = 5.0  # how long a request waits for the index to be first built before a 503
+PARALLEL_QUERIES = 4  # a remote store's queries in flight at once for resource lookups (two per lookup)
 
 
 class GraphService:
@@ -42,6 +44,9 @@ class GraphService:
         self.store = store
         self.index = index
         self.wait_ready = wait_ready  # (timeout) -> whether the index answers (built, caught up at start)
+        # A remote store answers a resource's outgoing and incoming statements side by side (a round trip
+        # saved per lookup); the embedded store's results must stay on the thread that made them.
+        self._parallel = ThreadPoolExecutor(PARALLEL_QUERIES, "resource-queries") if store.remote else None
 
     def graph(self, request: GraphRequest) -> dict[str, object]:
         """The nodes and edges to draw; blocking (SQLite)."""
@@ -70,7 +75,6 @@ class GraphService:
         parameter = PARAMETER_VARIABLE_PREFIX + "iri"
         out_text = bind_rows(self.catalog.get("graph/resource-out").text, [parameter],
                              [[NamedNode(iri)] for iri in iris], wrap=wrap)  # fmt: skip
-        outgoing = self._by_resource(iris, select(self.store, out_text).rows)
         in_text = self.catalog.get("graph/resource-in").text
         if incoming is None:
             in_text = bind_rows(in_text, [parameter], [[NamedNode(iri)] for iri in iris], wrap=wrap)
@@ -78,11 +82,38 @@ class GraphService:
             rows: list[list[Term | None]] = [[NamedNode(i), NamedNode(p)] for i in iris for p in sorted(incoming)]
             in_text = bind_rows(in_text, [parameter, "predicate"], rows, wrap=wrap)
         limit = len(iris) * (incoming_limit + 1)
-        found = select(self.store, paged(in_text, limit, None)).rows
+        out_rows, found = self._both(out_text, paged(in_text, limit, None))
         if len(iris) > 1 and len(found) >= limit:
             return {iri: self.resource(iri, incoming=incoming, incoming_limit=incoming_limit) for iri in iris}
-        pointing = self._by_resource(iris, found)
+        outgoing, pointing = self._by_resource(iris, out_rows), self._by_resource(iris, found)
         return {iri: _described(iri, outgoing[iri], pointing[iri], incoming_limit) for iri in iris}
+
+    def close(self) -> None:
+        if self._parallel is not None:
+            self._parallel.shutdown(wait=False)
+        self.index.close()
+
+    def summaries(
+        self, iris: Sequence[str], *, incoming: Collection[str], incoming_limit: int = INCOMING_LIMIT
+    ) -> dict[str, dict[str, object]]:
+        """`resources` for a reader that needs only links, types and the literals the graph index keeps whole
+        (`GraphIndex.kept_literals`): read from the index once it is built, so it costs no store round trip
+        whatever the store's load; from the store until then. Linked resources carry no labels here."""
+        if not self.index.ready:
+            return self.resources(iris, incoming=incoming, incoming_limit=incoming_limit)
+        iris = list(dict.fromkeys(iris))
+        out_rows, in_rows = self.index.statements(iris, incoming, incoming_limit)
+        # In the order the store's query gives them, so the first of several values is the same one.
+        out_rows.sort(key=lambda row: (row["predicate"].value, str(row["value"])))
+        outgoing, pointing = self._by_resource(iris, out_rows), self._by_resource(iris, in_rows)
+        return {iri: _described(iri, outgoing[iri], pointing[iri], incoming_limit) for iri in iris}
+
+    def _both(self, first: str, second: str) -> tuple[list[dict[str, Term]], list[dict[str, Term]]]:
+        """The rows of two SELECT queries; at once on a remote store."""
+        if self._parallel is None:
+            return select(self.store, first).rows, select(self.store, second).rows
+        later = self._parallel.submit(lambda: select(self.store, second).rows)
+        return select(self.store, first).rows, later.result()
 
     def _by_resource(self, iris: list[str], rows: list[dict[str, Term]]) -> dict[str, list[dict[str, object]]]:
         grouped: dict[str, list[dict[str, Term]]] = {iri: [] for iri in iris}

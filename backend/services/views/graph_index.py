@@ -13,9 +13,10 @@ from __future__ import annotations
 import json
 import logging
 from collections import defaultdict
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Collection, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
+from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -23,12 +24,12 @@ from pyoxigraph import Literal, NamedNode, Quad
 
 from segb_server.backend.services.views.database import ViewDatabase
 from segb_server.backend.services.views.term_values import iso_time
-from segb_server.backend.store.base import Store
+from segb_server.backend.store.base import Store, Term
 from segb_server.backend.vocabulary import KINDS, PREFIXES, Kind, compact, kind_of
 
 logger = logging.getLogger("segb.graph")
 
-INDEX_VERSION = "3"  # bump when the stored rows change meaning: the index is then built again
+INDEX_VERSION = "4"  # bump when the stored rows change meaning: the index is then built again
 RDF_TYPE = PREFIXES["rdf"] + "type"
 # Display name predicates, best first.
 LABELS = [PREFIXES["foaf"] + "firstName", PREFIXES["schema"] + "name", PREFIXES["rdfs"] + "label"]
@@ -50,7 +51,7 @@ MAX_LABEL = 60
 UNTIMED = "~"  # sorts after every instant
 CHUNK = 400  # IRIs per IN (…) list
 
-TABLES = ("graph_state", "graph_types", "graph_literals", "graph_links", "graph_nodes")
+TABLES = ("graph_state", "graph_types", "graph_literals", "graph_details", "graph_links", "graph_nodes")
 SCHEMA = [
     # nodes: how many rows graph_nodes holds (nodes are only ever added, until a clearing), for the first view's
     # total without counting them; changed: the entry of the last change to what is drawn (for live viewers of
@@ -60,6 +61,9 @@ SCHEMA = [
     "CREATE TABLE IF NOT EXISTS graph_types (iri TEXT, type TEXT, PRIMARY KEY (iri, type)) WITHOUT ROWID",
     "CREATE TABLE IF NOT EXISTS graph_literals (iri TEXT, predicate TEXT, value TEXT, PRIMARY KEY (iri, predicate))"
     " WITHOUT ROWID",
+    # every value of the literals kept whole for resource summaries (`detail_literals`), with datatype or language
+    "CREATE TABLE IF NOT EXISTS graph_details (iri TEXT, predicate TEXT, value TEXT, datatype TEXT, language TEXT, "
+    "PRIMARY KEY (iri, predicate, value, datatype, language)) WITHOUT ROWID",
     "CREATE TABLE IF NOT EXISTS graph_links (source TEXT, predicate TEXT, target TEXT, "
     "PRIMARY KEY (source, predicate, target)) WITHOUT ROWID",
     "CREATE INDEX IF NOT EXISTS graph_links_by_target ON graph_links (target, predicate, source)",
@@ -89,9 +93,12 @@ class GraphRequest:
 class GraphIndex:
     name = "graph"
 
-    def __init__(self, store: Store, path: Path | None) -> None:
+    def __init__(self, store: Store, path: Path | None, detail_literals: Collection[str] = ()) -> None:
         self.store = store
         self.db = ViewDatabase(path, SCHEMA)
+        # Literals kept whole, beside those that name and place nodes, so `statements` can stand in for the
+        # store when a resource's summary needs only these (an explanation's texts, versions, confidences).
+        self.kept_literals = DRAWN_LITERALS | frozenset(detail_literals)
         self.ready = False
         # The journal entry of the last change to what is drawn: live viewers fetch their view again when it
         # moves. Kept in memory by the process that keeps the index, read by `follow` in the others.
@@ -119,7 +126,7 @@ class GraphIndex:
                 connection.execute(statement)
             _set_through(connection, through, changed=True)
             for batch in self.store.batches(20_000):
-                _store_facts(connection, batch)
+                _store_facts(connection, batch, self.kept_literals)
             iris = [row[0] for row in connection.execute("SELECT iri FROM graph_nodes")]
             _derive(connection, iris)
         self.changed_through = through
@@ -127,7 +134,7 @@ class GraphIndex:
 
     def update(self, quads: list[Quad], through: int) -> None:
         with self.db.writing() as connection:
-            touched = _store_facts(connection, quads)
+            touched = _store_facts(connection, quads, self.kept_literals)
             if touched:
                 _derive(connection, sorted(touched | _borrowers(connection, touched)))
             _set_through(connection, through, changed=bool(touched))
@@ -168,6 +175,43 @@ class GraphIndex:
             "total_nodes": total,
             "matches": [str(node["id"]) for node in nodes if needle and _matches(node, needle)],
         }
+
+    def statements(
+        self, iris: Sequence[str], incoming: Collection[str], incoming_limit: int
+    ) -> tuple[list[dict[str, Term]], list[dict[str, Term]]]:
+        """What the index holds about `iris`, as rows of the store's resource queries (`resource`, `predicate`,
+        `value`): every link and type from each, its kept literals, and up to `incoming_limit` + 1 links with
+        the `incoming` predicates pointing at each."""
+        connection = self.db.reader()
+        outgoing: list[dict[str, Term]] = []
+        pointing: list[dict[str, Term]] = []
+        type_predicate = NamedNode(RDF_TYPE)
+        for chunk in _chunks(list(dict.fromkeys(iris))):
+            marks = ", ".join("?" * len(chunk))
+            for source, predicate, target in connection.execute(
+                f"SELECT source, predicate, target FROM graph_links WHERE source IN ({marks})", chunk
+            ):
+                outgoing.append({"resource": NamedNode(source), "predicate": NamedNode(predicate),
+                                 "value": NamedNode(target)})  # fmt: skip
+            for iri, type_ in connection.execute(f"SELECT iri, type FROM graph_types WHERE iri IN ({marks})", chunk):
+                outgoing.append({"resource": NamedNode(iri), "predicate": type_predicate, "value": NamedNode(type_)})
+            for iri, predicate, value, datatype, language in connection.execute(
+                f"SELECT iri, predicate, value, datatype, language FROM graph_details WHERE iri IN ({marks})", chunk
+            ):
+                literal = (
+                    Literal(value, language=language) if language else Literal(value, datatype=NamedNode(datatype))
+                )
+                outgoing.append({"resource": NamedNode(iri), "predicate": NamedNode(predicate), "value": literal})
+        predicates = sorted(incoming)
+        marks = ", ".join("?" * len(predicates))
+        for iri in dict.fromkeys(iris):
+            for predicate, source in connection.execute(
+                f"SELECT predicate, source FROM graph_links WHERE target = ? AND predicate IN ({marks}) LIMIT ?",
+                [iri, *predicates, incoming_limit + 1],
+            ):
+                pointing.append({"resource": NamedNode(iri), "predicate": NamedNode(predicate),
+                                 "value": NamedNode(source)})  # fmt: skip
+        return outgoing, pointing
 
 
 class _CandidateQuery:
@@ -303,10 +347,12 @@ class _Derived:
     label: str
 
 
-def _store_facts(connection: Any, quads: Iterable[Quad]) -> set[str]:
-    """Store the drawable facts among `quads`; the IRIs of the nodes they are about."""
+def _store_facts(connection: Any, quads: Iterable[Quad], kept_literals: frozenset[str]) -> set[str]:
+    """Store the drawable facts among `quads`, and the kept literals whole; the IRIs of the nodes they are
+    about."""
     types: list[tuple[str, str]] = []
     literals: list[tuple[str, str, str]] = []
+    details: list[tuple[str, str, str, str, str]] = []
     times: list[tuple[str, str, str]] = []
     links: list[tuple[str, str, str]] = []
     nodes: set[str] = set()
@@ -315,6 +361,11 @@ def _store_facts(connection: Any, quads: Iterable[Quad]) -> set[str]:
         if not isinstance(subject, NamedNode):
             continue
         if isinstance(value, Literal):
+            if predicate in kept_literals:
+                language = value.language or ""
+                details.append(
+                    (subject.value, predicate, value.value, "" if language else value.datatype.value, language)
+                )
             if predicate in DRAWN_LITERALS:
                 (times if predicate in TIMES else literals).append((subject.value, predicate, value.value))
                 nodes.add(subject.value)
@@ -328,6 +379,7 @@ def _store_facts(connection: Any, quads: Iterable[Quad]) -> set[str]:
     connection.executemany("INSERT OR IGNORE INTO graph_types VALUES (?, ?)", types)
     connection.executemany("INSERT OR IGNORE INTO graph_literals VALUES (?, ?, ?)", literals)  # the first name stays
     connection.executemany("INSERT OR REPLACE INTO graph_literals VALUES (?, ?, ?)", times)
+    connection.executemany("INSERT OR IGNORE INTO graph_details VALUES (?, ?, ?, ?, ?)", details)
     connection.executemany("INSERT OR IGNORE INTO graph_links VALUES (?, ?, ?)", links)
     added = connection.executemany(
         "INSERT OR IGNORE INTO graph_nodes VALUES (?, 'other', ?, NULL, ?, '', '', '[]')",
@@ -454,10 +506,16 @@ def display_label(iri: str, kind: Kind, literals: dict[str, str], category: str 
 
 
 def _node(iri: str, kind: str, time: str | None, label: str, types: str) -> dict[str, object]:
-    node: dict[str, object] = {"id": iri, "label": label, "kind": kind, "types": json.loads(types)}
+    node: dict[str, object] = {"id": iri, "label": label, "kind": kind, "types": list(_types(types))}
     if time:
         node["time"] = time
     return node
+
+
+@lru_cache(maxsize=4096)
+def _types(listed: str) -> tuple[str, ...]:
+    """A node's stored type list, parsed once: a graph of thousands of nodes has a few dozen distinct lists."""
+    return tuple(json.loads(listed))
 
 
 def _total(connection: Any, query: _CandidateQuery) -> int:
