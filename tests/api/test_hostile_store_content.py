@@ -58,3 +58,23 @@ def test_the_resource_and_its_explanation_answer(poisoned: LiveServer, path: str
     answer = httpx.get(f"{poisoned.url}{path}", params={"iri": EX + "a"})
     assert answer.status_code in (200, 404), answer.text
     assert answer.headers["content-type"] == "application/json"
+
+
+def test_a_report_row_holding_an_integer_past_64_bits_answers(memory_api: LiveServer) -> None:
+    """JSON answers are encoded by orjson, which refuses integers past 64 bits; such a value (a robot may log
+    any xsd:integer) must still reach the page whole."""
+    huge = "123456789012345678901234567890"
+    turtle = f"""
+        @prefix segb: <http://www.gsi.upm.es/ontologies/segb/ns#> .
+        @prefix onyx: <http://www.gsi.upm.es/ontologies/onyx/ns#> .
+        @prefix oa: <http://www.w3.org/ns/oa#> . @prefix xsd: <http://www.w3.org/2001/XMLSchema#> .
+        @prefix prov: <http://www.w3.org/ns/prov#> .
+        <{EX}act> segb:producedEntityResult <{EX}ann> ; prov:startedAtTime "2026-01-01T00:00:00Z"^^xsd:dateTime .
+        <{EX}ann> onyx:hasEmotion <{EX}emo> ; oa:hasTarget <{EX}h> .
+        <{EX}emo> onyx:hasEmotionCategory <{EX}joy> ; onyx:hasEmotionIntensity "{huge}"^^xsd:integer .
+    """
+    posted = httpx.post(f"{memory_api.url}/ttl", content=turtle, headers={"Content-Type": "text/turtle"})
+    assert posted.status_code == 201, posted.text
+    page = httpx.get(f"{memory_api.url}/reports/emotion-timeline", timeout=30)
+    assert page.status_code == 200, page.text
+    assert f'"intensity":{huge}' in page.text.replace(" ", "")

@@ -7,9 +7,9 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Query
 from fastapi.concurrency import run_in_threadpool
-from fastapi.responses import JSONResponse
 
 from segb_server.backend.api.deps import Auditor, ServicesDep
+from segb_server.backend.api.responses import FastJSONResponse
 from segb_server.backend.services.sparql.catalog import Parameter, to_term
 from segb_server.backend.services.views.graph import MAX_NODES, GraphRequest, parse_types
 from segb_server.backend.services.views.term_values import iso_time
@@ -56,7 +56,7 @@ async def graph(
     focus: str | None = None,
     depth: Annotated[int, Query(ge=0, le=6)] = 1,
     q: Annotated[str | None, Query(max_length=200)] = None,
-) -> JSONResponse:
+) -> FastJSONResponse:
     request = GraphRequest(
         limit=limit,
         robot=_iri("robot", robot),
@@ -67,9 +67,9 @@ async def graph(
         depth=depth,
         q=q.strip() if q and q.strip() else None,
     )
-    # A JSONResponse skips FastAPI's per-value encoding pass, which costs more than the query on big graphs; made
-    # in the worker thread, so encoding a view of a megabyte does not hold the event loop either.
-    return await run_in_threadpool(lambda: JSONResponse(services.graph.graph(request)))
+    # A FastJSONResponse skips FastAPI's per-value encoding pass, which costs more than the query on big graphs;
+    # made in the worker thread, so encoding a view of a megabyte does not hold the event loop either.
+    return await run_in_threadpool(lambda: FastJSONResponse(services.graph.graph(request)))
 
 
 @router.get("/resource", summary="Every triple about one resource, both directions, with labels")

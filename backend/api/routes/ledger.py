@@ -7,11 +7,12 @@ from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Query, Request
 from fastapi.concurrency import run_in_threadpool
-from fastapi.responses import JSONResponse, Response
+from fastapi.responses import Response
 from pydantic import BaseModel, Field
 
 from segb_server.backend.api.deps import Auditor, ServicesDep
 from segb_server.backend.api.paging import Offset
+from segb_server.backend.api.responses import FastJSONResponse
 from segb_server.backend.services.formats import Format as MediaFormat
 from segb_server.backend.services.formats import negotiate
 
@@ -119,4 +120,4 @@ async def receipt(
     if fmt.name == "ntriples":
         return Response(content or b"", media_type=fmt.media_type)
     body = {"receipt": found.public(), "content": None if content is None else content.decode("utf-8")}
-    return JSONResponse(body)
+    return FastJSONResponse(body)

@@ -12,10 +12,11 @@ from typing import Any
 
 from fastapi import APIRouter, Request
 from fastapi.concurrency import run_in_threadpool
-from fastapi.responses import JSONResponse, Response
+from fastapi.responses import Response
 
 from segb_server.backend.api.deps import Auditor, ServicesDep
 from segb_server.backend.api.paging import MAX_OFFSET
+from segb_server.backend.api.responses import FastJSONResponse
 from segb_server.backend.services.errors import InvalidParameter
 from segb_server.backend.services.formats import TABLES, names, negotiate
 from segb_server.backend.services.sparql.catalog import Catalog, CatalogQuery
@@ -94,7 +95,7 @@ async def answer_report(name: str, request: Request, services: ServicesDep) -> R
                 media_type=fmt.content_type,
                 headers={"Content-Disposition": f'attachment; filename="{name}.csv"'},
             )
-        return JSONResponse(table.as_json())
+        return FastJSONResponse(table.as_json())
 
     return await run_in_threadpool(work)
 
