@@ -202,9 +202,13 @@ def live_notes(live: dict[tuple[str, int], LiveReports]) -> list[str]:
             "report declares only its row key (`# key: ?message`; for an aggregate, its groups) and its filters",
             "(`# param`), and is kept the same way without any Python (docs/reports.md, *How reports stay fast*).",
             "",
-            "**The graph views are read from the graph index** (`backend/services/views/graph_index.py`): a first",
-            "view or a neighbourhood is a few indexed SQLite queries whatever the size of the log; a label search",
-            "or a time window scans the index's nodes.",
+            "**The graph views and explanations are read from the graph index**",
+            "(`backend/services/views/graph_index.py`): a first view or a neighbourhood is a few indexed SQLite",
+            "queries whatever the size of the log; a label search or a time window scans the index's nodes. An",
+            "explanation walks the index's links and reads the few literals a story tells (texts, labels, model",
+            "versions, intensities, confidences), which the index keeps whole, so it never waits on the store: on",
+            "Virtuoso it used to be about ten round trips, 160 ms at p50 at a million triples under live ingest.",
+            "The big answers (a first view of 1,500 nodes is 0.9 to 1.3 MB) are encoded with orjson.",
             "",
         ]
     )

@@ -179,11 +179,13 @@ def units_touched(
         if target in pattern.variables():
             units.update(term_text(binding[target]) for binding in bindings if target in binding)
             continue
-        names = sorted(pattern.variables())
-        rows = list({tuple(term_text(binding[name]) for name in names): binding for binding in bindings}.values())
         # One branch per chain, each opening with its own VALUES: they must bind the chain's own group (a BIND
         # in a UNION branch would not see VALUES outside it, and the branch would reach every unit of the store).
         for path in paths(plan, pattern, target):
+            # Only the variables the chain goes on from: a chain from a triple's subject needs no VALUES of its
+            # object, and leaving a literal object out lets the branch join the others' UNION (below).
+            names = sorted(name for name in pattern.variables() if _mentions(path, name)) or sorted(pattern.variables())
+            rows = list({tuple(term_text(binding[name]) for name in names): binding for binding in bindings}.values())
             for start in range(0, len(rows), VALUES_PER_QUERY):
                 chunk = rows[start : start + VALUES_PER_QUERY]
                 values = " ".join("(" + " ".join(term_text(binding[n]) for n in names) + ")" for binding in chunk)
@@ -200,6 +202,12 @@ def units_touched(
         units.update(term_text(row[unit]) for row in select(store, f"SELECT DISTINCT {target} WHERE {{ {union} }}").rows
                      if unit in row)  # fmt: skip
     return units
+
+
+def _mentions(path: list[str], variable: str) -> bool:
+    """Whether a chain's steps use `variable` (`?t` is not in `?text`)."""
+    used = re.compile(re.escape(variable) + r"(?![A-Za-z0-9_])")
+    return any(used.search(step) for step in path)
 
 
 def _fits(plan: ReportPlan, pattern: Pattern, quad: Quad) -> bool:
