@@ -29,7 +29,7 @@ GIVE_UP_SECONDS = 60.0
 KEYS = re.compile(r"report reports/(\S+) built: (\d+) keys")
 BUILT = re.compile(r"view reports/(\S+) built in ([\d.]+) s")
 THRESHOLD = "0.9"
-VIEW_REPEATS = 10  # each graph view and the explanation, repeated
+VIEW_REPEATS = 20  # each graph view and the explanation, repeated (as many as a report page)
 GRAPH_VIEW = "graph"
 
 

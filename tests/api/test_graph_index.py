@@ -12,10 +12,11 @@ from pathlib import Path
 
 import httpx
 import pytest
+from pyoxigraph import Literal, NamedNode, Quad
 
 from segb_server.backend.api.app import create_app
 from segb_server.backend.services.container import GRAPH_FILE
-from segb_server.backend.services.views.graph_index import GraphIndex, GraphRequest
+from segb_server.backend.services.views.graph_index import FIRST_VIEW, GraphIndex, GraphRequest
 from segb_server.backend.store.base import Store
 from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.conftest import STORE_KINDS, make_settings, virtuoso_store
@@ -23,11 +24,14 @@ from tests.support.histories import EX, History
 from tests.support.live_server import LiveServer
 from tests.support.settle import settle
 
+XSD_DATETIME = "http://www.w3.org/2001/XMLSchema#dateTime"
+
 REQUESTS = [
     GraphRequest(limit=20_000),
     GraphRequest(limit=20_000, robot=f"{EX}robot/ari"),
     GraphRequest(limit=20_000, focus=f"{EX}human/maria", depth=2),
     GraphRequest(limit=30),  # the first view cut short: which nodes come first matters too
+    GraphRequest(),  # the kg-graph's first view, which is kept between changes that reach it
 ]
 
 
@@ -117,3 +121,48 @@ def test_a_restart_catches_the_index_up_from_the_journal(tmp_path: Path, caplog:
         assert built == []  # caught up from the journal, not built again from the store
     finally:
         store.close()
+
+
+def test_the_first_view_is_kept_while_posts_land_after_it_and_drawn_again_when_one_reaches_it(tmp_path: Path) -> None:
+    """Under a stream of posts the first view (1,500 nodes of a bigger graph) is kept: new activities sort
+    after its last node. A change that reaches it (a link between two of its nodes, an earlier activity that
+    enters it) draws it again; whichever happened, it equals the view of an index built afresh."""
+    prov, segb = "http://www.w3.org/ns/prov#", "http://www.gsi.upm.es/ontologies/segb/ns#"
+    robot = NamedNode(f"{EX}robot/ari")
+
+    def activity(number: int, time: str) -> list[Quad]:
+        node = NamedNode(f"{EX}activity/{number}")
+        return [
+            Quad(node, NamedNode(prov + "startedAtTime"), Literal(time, datatype=NamedNode(XSD_DATETIME))),
+            Quad(node, NamedNode(segb + "wasPerformedBy"), robot),
+        ]
+
+    store = OxigraphStore("http://amor-segb/events")
+    store.apply(
+        [q for n in range(2000) for q in activity(n, f"2026-03-10T{n // 3600:02d}:{n // 60 % 60:02d}:{n % 60:02d}Z")], 0
+    )
+    index = GraphIndex(store, tmp_path / "graph.sqlite3")
+    index.build(0)
+
+    def generation() -> int:
+        return int(index.db.reader().execute("SELECT first_view FROM graph_state").fetchone()[0])
+
+    def step(quads: list[Quad], through: int) -> None:
+        store.apply(quads, through)
+        index.update(quads, through)
+        assert index.view(FIRST_VIEW) == fresh(store, FIRST_VIEW), through
+
+    first = index.view(FIRST_VIEW)
+    assert first["truncated"] and len(first["nodes"]) == FIRST_VIEW.limit  # type: ignore[arg-type]
+    kept = generation()
+    step(activity(5000, "2026-03-11T00:00:00Z"), 1)  # later than every drawn node
+    assert generation() == kept
+    assert index.view(FIRST_VIEW)["total_nodes"] == first["total_nodes"] + 1  # type: ignore[operator]
+    link = [Quad(NamedNode(f"{EX}activity/0"), NamedNode(segb + "triggeredByActivity"), NamedNode(f"{EX}activity/1"))]
+    step(link, 2)
+    assert generation() != kept
+    kept = generation()
+    step(activity(6000, "2026-03-09T00:00:00Z"), 3)  # earlier than every drawn activity: it enters the view
+    assert generation() != kept
+    index.close()
+    store.close()

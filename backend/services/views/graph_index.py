@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 from functools import lru_cache
 from pathlib import Path
+from time import time_ns
 from typing import Any
 
 from pyoxigraph import Literal, NamedNode, Quad
@@ -56,8 +57,10 @@ SCHEMA = [
     # nodes: how many rows graph_nodes holds (nodes are only ever added, until a clearing), for the first view's
     # total without counting them; changed: the entry of the last change to what is drawn (for live viewers of
     # every API process)
+    # first_view: changes whenever the first view (`FIRST_VIEW`) would draw something else, so every process may
+    # keep that view, the one each visit opens with, until it does
     "CREATE TABLE IF NOT EXISTS graph_state (id INTEGER PRIMARY KEY CHECK (id = 1), version TEXT, through INTEGER, "
-    "nodes INTEGER NOT NULL DEFAULT 0, changed INTEGER NOT NULL DEFAULT 0)",
+    "nodes INTEGER NOT NULL DEFAULT 0, changed INTEGER NOT NULL DEFAULT 0, first_view INTEGER NOT NULL DEFAULT 0)",
     "CREATE TABLE IF NOT EXISTS graph_types (iri TEXT, type TEXT, PRIMARY KEY (iri, type)) WITHOUT ROWID",
     "CREATE TABLE IF NOT EXISTS graph_literals (iri TEXT, predicate TEXT, value TEXT, PRIMARY KEY (iri, predicate))"
     " WITHOUT ROWID",
@@ -90,6 +93,9 @@ class GraphRequest:
     q: str | None = None
 
 
+FIRST_VIEW = GraphRequest()  # the kg-graph's first view: no filter, the default limit
+
+
 class GraphIndex:
     name = "graph"
 
@@ -103,6 +109,7 @@ class GraphIndex:
         # The journal entry of the last change to what is drawn: live viewers fetch their view again when it
         # moves. Kept in memory by the process that keeps the index, read by `follow` in the others.
         self.changed_through = 0
+        self._first_view: tuple[int, dict[str, object]] | None = None  # (graph_state.first_view, the view)
 
     # --- Projection ----------------------------------------------------------------------------------
 
@@ -125,6 +132,7 @@ class GraphIndex:
             for statement in SCHEMA:
                 connection.execute(statement)
             _set_through(connection, through, changed=True)
+            _new_first_view(connection)
             for batch in self.store.batches(20_000):
                 _store_facts(connection, batch, self.kept_literals)
             iris = [row[0] for row in connection.execute("SELECT iri FROM graph_nodes")]
@@ -134,9 +142,14 @@ class GraphIndex:
 
     def update(self, quads: list[Quad], through: int) -> None:
         with self.db.writing() as connection:
-            touched = _store_facts(connection, quads, self.kept_literals)
+            before = _first_view_rows(connection) if quads else []
+            touched, links = _store_facts(connection, quads, self.kept_literals)
             if touched:
                 _derive(connection, sorted(touched | _borrowers(connection, touched)))
+                after = _first_view_rows(connection)
+                drawn = {row[0] for row in after}
+                if after != before or any(source in drawn and target in drawn for source, _, target in links):
+                    connection.execute("UPDATE graph_state SET first_view = first_view + 1")
             _set_through(connection, through, changed=bool(touched))
         if touched:
             self.changed_through = through
@@ -146,6 +159,7 @@ class GraphIndex:
             for table in TABLES:
                 connection.execute(f"DELETE FROM {table}")
             _set_through(connection, through, changed=True)
+            _new_first_view(connection)
         self.changed_through = through
 
     def close(self) -> None:
@@ -154,8 +168,22 @@ class GraphIndex:
     # --- reading -------------------------------------------------------------------------------------
 
     def view(self, request: GraphRequest) -> dict[str, object]:
-        """The nodes and edges to draw, most relevant first, cut at `request.limit`."""
+        """The nodes and edges to draw, most relevant first, cut at `request.limit`. The first view is kept
+        until a change reaches what it draws: under a stream of posts, the new nodes sort after its last."""
         connection = self.db.reader()
+        if request != FIRST_VIEW:
+            return self._view(connection, request)
+        state = connection.execute("SELECT first_view, nodes FROM graph_state").fetchone()
+        if state is None:
+            return self._view(connection, request)
+        generation, total = state  # read before the view: a view kept is never older than its generation
+        kept = self._first_view
+        if kept is None or kept[0] != generation:
+            kept = self._first_view = (generation, self._view(connection, request))
+        view = kept[1]
+        return {**view, "total_nodes": total if view["truncated"] else view["total_nodes"]}
+
+    def _view(self, connection: Any, request: GraphRequest) -> dict[str, object]:
         query = _CandidateQuery(request)
         if (
             request.focus
@@ -347,9 +375,11 @@ class _Derived:
     label: str
 
 
-def _store_facts(connection: Any, quads: Iterable[Quad], kept_literals: frozenset[str]) -> set[str]:
+def _store_facts(
+    connection: Any, quads: Iterable[Quad], kept_literals: frozenset[str]
+) -> tuple[set[str], list[tuple[str, str, str]]]:
     """Store the drawable facts among `quads`, and the kept literals whole; the IRIs of the nodes they are
-    about."""
+    about, and the links among them."""
     types: list[tuple[str, str]] = []
     literals: list[tuple[str, str, str]] = []
     details: list[tuple[str, str, str, str, str]] = []
@@ -386,7 +416,7 @@ def _store_facts(connection: Any, quads: Iterable[Quad], kept_literals: frozense
         [(iri, RANK["other"], UNTIMED) for iri in nodes],
     ).rowcount
     connection.execute("UPDATE graph_state SET nodes = nodes + ?", (added,))
-    return nodes
+    return nodes, links
 
 
 def _borrowers(connection: Any, touched: set[str]) -> set[str]:
@@ -545,6 +575,16 @@ def _edges(connection: Any, iris: list[str]) -> list[dict[str, str]]:
 
 def _matches(node: dict[str, object], needle: str) -> bool:
     return needle in str(node["label"]).casefold() or needle in str(node["id"]).casefold()
+
+
+def _first_view_rows(connection: Any) -> list[tuple[Any, ...]]:
+    """What the first view draws its nodes from (one row more than its limit: whether it is cut off)."""
+    return connection.execute(*_CandidateQuery(FIRST_VIEW).ordered(FIRST_VIEW.limit + 1)).fetchall()
+
+
+def _new_first_view(connection: Any) -> None:
+    """A first view unlike any kept one (after a build or a clearing, which start the counter again)."""
+    connection.execute("UPDATE graph_state SET first_view = ?", (time_ns(),))
 
 
 def _set_through(connection: Any, through: int, *, changed: bool) -> None:
