@@ -103,7 +103,8 @@ class GraphService:
             return self.resources(iris, incoming=incoming, incoming_limit=incoming_limit)
         iris = list(dict.fromkeys(iris))
         out_rows, in_rows = self.index.statements(iris, incoming, incoming_limit)
-        # In the order the store's query gives them, so the first of several values is the same one.
+        # By predicate, then value, as the store's query sorts them (values by their N-Triples text here: of
+        # several numbers for one predicate, the first may differ from the store's numeric order).
         out_rows.sort(key=lambda row: (row["predicate"].value, str(row["value"])))
         outgoing, pointing = self._by_resource(iris, out_rows), self._by_resource(iris, in_rows)
         return {iri: _described(iri, outgoing[iri], pointing[iri], incoming_limit) for iri in iris}
