@@ -103,7 +103,13 @@ def build_services(
     index = GraphIndex(store, None if in_memory else settings.data_dir / GRAPH_FILE, detail_literals=TOLD_LITERALS)
     views = Projector(store, journal, [*maintainer.reports.values(), index], views_leadership, applier)
     applier.on_applied(views.on_applied)
-    graph = GraphService(catalog, store, index, wait_ready=lambda timeout: views.wait_for(0, timeout))
+    graph = GraphService(
+        catalog,
+        store,
+        index,
+        wait_ready=lambda timeout: views.wait_for(0, timeout),
+        views_current=lambda: views.lag(applier.applied) == 0,
+    )
     return Services(
         settings=settings,
         store=store,

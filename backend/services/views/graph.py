@@ -39,11 +39,19 @@ PARALLEL_QUERIES = 4  # a remote store's queries in flight at once for resource 
 
 
 class GraphService:
-    def __init__(self, catalog: Catalog, store: Store, index: GraphIndex, wait_ready: Callable[[float], bool]) -> None:
+    def __init__(
+        self,
+        catalog: Catalog,
+        store: Store,
+        index: GraphIndex,
+        wait_ready: Callable[[float], bool],
+        views_current: Callable[[], bool] = lambda: True,
+    ) -> None:
         self.catalog = catalog
         self.store = store
         self.index = index
         self.wait_ready = wait_ready  # (timeout) -> whether the index answers (built, caught up at start)
+        self.views_current = views_current  # () -> whether the views include every step the store has applied
         # A remote store answers a resource's outgoing and incoming statements side by side (a round trip
         # saved per lookup); the embedded store's results must stay on the thread that made them.
         self._parallel = ThreadPoolExecutor(PARALLEL_QUERIES, "resource-queries") if store.remote else None
@@ -97,9 +105,10 @@ class GraphService:
         self, iris: Sequence[str], *, incoming: Collection[str], incoming_limit: int = INCOMING_LIMIT
     ) -> dict[str, dict[str, object]]:
         """`resources` for a reader that needs only links, types and the literals the graph index keeps whole
-        (`GraphIndex.kept_literals`): read from the index once it is built, so it costs no store round trip
-        whatever the store's load; from the store until then. Linked resources carry no labels here."""
-        if not self.index.ready:
+        (`GraphIndex.kept_literals`): read from the index when it includes every step the store has applied, so
+        it costs no store round trip; from the store while a step is on its way to the index (a post just
+        answered, a clearing) or before the index is built. Linked resources carry no labels here."""
+        if not self.index.ready or not self.views_current():
             return self.resources(iris, incoming=incoming, incoming_limit=incoming_limit)
         iris = list(dict.fromkeys(iris))
         out_rows, in_rows = self.index.statements(iris, incoming, incoming_limit)
