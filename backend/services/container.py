@@ -108,7 +108,7 @@ def build_services(
         store,
         index,
         wait_ready=lambda timeout: views.wait_for(0, timeout),
-        views_current=lambda: views.lag(applier.applied) == 0,
+        pending=lambda limit: views.pending(applier.applied, limit),
     )
     return Services(
         settings=settings,

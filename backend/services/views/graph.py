@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable, Collection, Sequence
 from concurrent.futures import ThreadPoolExecutor
 
-from pyoxigraph import Literal, NamedNode
+from pyoxigraph import Literal, NamedNode, Quad
 
 from segb_server.backend.services.errors import InvalidParameter, ViewNotReady
 from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, Catalog, paged
@@ -35,6 +35,9 @@ __all__ = ["MAX_NODES", "GraphRequest", "GraphService", "local_name", "parse_typ
 MAX_NODES = 20_000
 INCOMING_LIMIT = 500  # statements pointing at one resource, read at once
 READY_WAIT_SECONDS = 5.0  # how long a request waits for the index to be first built before a 503
+# Journal entries on their way to the index that a summary reads and adds to it; past that, asking the store
+# costs less than parsing them all.
+PENDING_ENTRIES = 100
 PARALLEL_QUERIES = 4  # a remote store's queries in flight at once for resource lookups (two per lookup)
 
 
@@ -45,13 +48,15 @@ class GraphService:
         store: Store,
         index: GraphIndex,
         wait_ready: Callable[[float], bool],
-        views_current: Callable[[], bool] = lambda: True,
+        pending: Callable[[int], list[Quad] | None] = lambda _limit: [],
     ) -> None:
         self.catalog = catalog
         self.store = store
         self.index = index
         self.wait_ready = wait_ready  # (timeout) -> whether the index answers (built, caught up at start)
-        self.views_current = views_current  # () -> whether the views include every step the store has applied
+        # (limit) -> the triples the store has and the views do not have yet, or None when they cannot stand in
+        # for the store (a clearing among them, or more than `limit` entries)
+        self.pending = pending
         # A remote store answers a resource's outgoing and incoming statements side by side (a round trip
         # saved per lookup); the embedded store's results must stay on the thread that made them.
         self._parallel = ThreadPoolExecutor(PARALLEL_QUERIES, "resource-queries") if store.remote else None
@@ -105,13 +110,17 @@ class GraphService:
         self, iris: Sequence[str], *, incoming: Collection[str], incoming_limit: int = INCOMING_LIMIT
     ) -> dict[str, dict[str, object]]:
         """`resources` for a reader that needs only links, types and the literals the graph index keeps whole
-        (`GraphIndex.kept_literals`): read from the index when it includes every step the store has applied, so
-        it costs no store round trip; from the store while a step is on its way to the index (a post just
-        answered, a clearing) or before the index is built. Linked resources carry no labels here."""
-        if not self.index.ready or not self.views_current():
+        (`GraphIndex.kept_literals`), without a store round trip: read from the index, with the steps the store
+        has applied and the index not yet (a post just answered) read from the journal. From the store while a
+        clearing is on its way to the index, when too many steps are, or before the index is built. Linked
+        resources carry no labels here."""
+        # The steps on their way are read before the index: whatever reaches it meanwhile is then read twice,
+        # never missed.
+        pending = self.pending(PENDING_ENTRIES) if self.index.ready else None
+        if pending is None:
             return self.resources(iris, incoming=incoming, incoming_limit=incoming_limit)
         iris = list(dict.fromkeys(iris))
-        out_rows, in_rows = self.index.statements(iris, incoming, incoming_limit)
+        out_rows, in_rows = self.index.statements(iris, incoming, incoming_limit, pending)
         # By predicate, then value, as the store's query sorts them (values by their N-Triples text here: of
         # several numbers for one predicate, the first may differ from the store's numeric order).
         out_rows.sort(key=lambda row: (row["predicate"].value, str(row["value"])))

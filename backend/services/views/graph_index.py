@@ -205,11 +205,12 @@ class GraphIndex:
         }
 
     def statements(
-        self, iris: Sequence[str], incoming: Collection[str], incoming_limit: int
+        self, iris: Sequence[str], incoming: Collection[str], incoming_limit: int, pending: Sequence[Quad] = ()
     ) -> tuple[list[dict[str, Term]], list[dict[str, Term]]]:
         """What the index holds about `iris`, as rows of the store's resource queries (`resource`, `predicate`,
         `value`): every link and type from each, its kept literals, and up to `incoming_limit` + 1 links with
-        the `incoming` predicates pointing at each."""
+        the `incoming` predicates pointing at each. `pending`: triples the store has and the index does not
+        have yet (applied steps on their way to it), told as if the index held them."""
         connection = self.db.reader()
         outgoing: list[dict[str, Term]] = []
         pointing: list[dict[str, Term]] = []
@@ -239,7 +240,11 @@ class GraphIndex:
             ):
                 pointing.append({"resource": NamedNode(iri), "predicate": NamedNode(predicate),
                                  "value": NamedNode(source)})  # fmt: skip
-        return outgoing, pointing
+        if not pending:
+            return outgoing, pointing
+        more_out, more_in = _pending_statements(pending, set(iris), set(incoming), self.kept_literals)
+        # A pending triple may have reached the index since its rows were read: each statement is told once.
+        return _unique(outgoing + more_out), _unique(pointing + more_in)
 
 
 class _CandidateQuery:
@@ -417,6 +422,31 @@ def _store_facts(
     ).rowcount
     connection.execute("UPDATE graph_state SET nodes = nodes + ?", (added,))
     return nodes, links
+
+
+def _pending_statements(
+    quads: Sequence[Quad], iris: set[str], incoming: set[str], kept_literals: frozenset[str]
+) -> tuple[list[dict[str, Term]], list[dict[str, Term]]]:
+    """The rows `GraphIndex.statements` would read about `iris` once `quads` are in the index: what
+    `_store_facts` keeps of them (links, types, kept literals, from named subjects only)."""
+    outgoing: list[dict[str, Term]] = []
+    pointing: list[dict[str, Term]] = []
+    for quad in quads:
+        subject, predicate, value = quad.subject, quad.predicate, quad.object
+        if not isinstance(subject, NamedNode):
+            continue
+        if isinstance(value, NamedNode):
+            if subject.value in iris:
+                outgoing.append({"resource": subject, "predicate": predicate, "value": value})
+            if value.value in iris and predicate.value in incoming and predicate.value != RDF_TYPE:
+                pointing.append({"resource": value, "predicate": predicate, "value": subject})
+        elif isinstance(value, Literal) and subject.value in iris and predicate.value in kept_literals:
+            outgoing.append({"resource": subject, "predicate": predicate, "value": value})
+    return outgoing, pointing
+
+
+def _unique(rows: list[dict[str, Term]]) -> list[dict[str, Term]]:
+    return list({(row["resource"], row["predicate"], row["value"]): row for row in rows}.values())
 
 
 def _borrowers(connection: Any, touched: set[str]) -> set[str]:

@@ -141,6 +141,20 @@ class Projector:
             return 0
         return max(0, applied - self.through)
 
+    def pending(self, applied: int, limit: int) -> list[Quad] | None:
+        """The triples the store has through entry `applied` and the views do not have yet, read from the journal
+        (a reader adds them to what a view holds to answer as the store would); None when they cannot stand in
+        for the store: a clearing is among those entries, or more than `limit` of them."""
+        behind = self.lag(applied)
+        if behind == 0:
+            return []
+        if behind > limit:
+            return None
+        steps = applied_steps(self.journal.entries_after(applied - behind, behind))
+        if any(step.cleared for step in steps):
+            return None
+        return [quad for step in steps for quad in step.quads]
+
     # --- the thread ----------------------------------------------------------------------------------
 
     def _run(self) -> None:
