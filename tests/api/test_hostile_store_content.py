@@ -4,6 +4,8 @@ posts with triple terms are refused, on every store."""
 
 from __future__ import annotations
 
+import json
+
 import httpx
 import pytest
 from pyoxigraph import NamedNode, Quad, Triple
@@ -78,3 +80,28 @@ def test_a_report_row_holding_an_integer_past_64_bits_answers(memory_api: LiveSe
     page = httpx.get(f"{memory_api.url}/reports/emotion-timeline", timeout=30)
     assert page.status_code == 200, page.text
     assert f'"intensity":{huge}' in page.text.replace(" ", "")
+
+
+@pytest.mark.parametrize("odd", ["NaN", "INF", "-INF"])
+def test_a_report_row_holding_a_double_json_cannot_write_answers_as_json(memory_api: LiveServer, odd: str) -> None:
+    """xsd:double has NaN and infinities, which JSON has no way to write: a page holding one is still JSON any
+    strict reader takes, the value left out as null."""
+    turtle = f"""
+        @prefix segb: <http://www.gsi.upm.es/ontologies/segb/ns#> .
+        @prefix onyx: <http://www.gsi.upm.es/ontologies/onyx/ns#> .
+        @prefix oa: <http://www.w3.org/ns/oa#> . @prefix xsd: <http://www.w3.org/2001/XMLSchema#> .
+        @prefix prov: <http://www.w3.org/ns/prov#> .
+        <{EX}act> segb:producedEntityResult <{EX}ann> ; prov:startedAtTime "2026-01-01T00:00:00Z"^^xsd:dateTime .
+        <{EX}ann> onyx:hasEmotion <{EX}emo> ; oa:hasTarget <{EX}h> .
+        <{EX}emo> onyx:hasEmotionCategory <{EX}joy> ; onyx:hasEmotionIntensity "{odd}"^^xsd:double .
+    """
+    posted = httpx.post(f"{memory_api.url}/ttl", content=turtle, headers={"Content-Type": "text/turtle"})
+    assert posted.status_code == 201, posted.text
+    page = httpx.get(f"{memory_api.url}/reports/emotion-timeline", timeout=30)
+    assert page.status_code == 200, page.text
+
+    def refuse(constant: str) -> None:
+        raise AssertionError(f"not JSON: {constant}")
+
+    rows = json.loads(page.text, parse_constant=refuse)["rows"]
+    assert [row["intensity"] for row in rows] == [None]
