@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import os
 import subprocess
 import sys
@@ -38,6 +39,7 @@ class ServerProcess:
         self.ready_seconds = 0.0  # from start until the ready path answered 200
 
     def __enter__(self) -> ServerProcess:
+        gc.collect()  # between measurements: the bench measures with its collector off (`measure`)
         # The server logs as in production (one line per request); a file, unlike a pipe nobody reads,
         # never fills up and stalls it.
         self._log = log = tempfile.TemporaryFile()
