@@ -33,7 +33,7 @@ from segb_server.backend.store.terms import bind_rows, bind_values, term_text
 
 logger = logging.getLogger("segb.reports")
 
-PLAN_VERSION = "3"  # bump when the stored layout changes: every report is then built again
+PLAN_VERSION = "4"  # bump when the stored layout changes: every report is then built again
 VALUES_PER_QUERY = 300
 BRANCHES_PER_QUERY = 12  # key-finding chains asked in one query
 CHANGES_KEPT = 20_000

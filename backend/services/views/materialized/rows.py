@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import base64
 import json
-import re
 import struct
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
@@ -104,7 +103,7 @@ class Layout:
         plan = self.plan
         order = plan.group_by if plan.is_aggregate else plan.order
         values: list[object] = [unit, index, sort_key([row.get(name[1:]) for name in order])]
-        values.append(json.dumps({name[1:]: _stored(row.get(name[1:])) for name in self._stored_columns()}))
+        values.append(_row_text({name[1:]: _stored(row.get(name[1:])) for name in self._stored_columns()}))
         values += [filter_value(row.get(var), self.kind_of(var)) for var in self.filter_columns]
         values += [term_text(row[var]) if var in row else None for var in self.anchors]
         if plan.is_aggregate:
@@ -346,22 +345,24 @@ def _sql_aggregate(function: str, distinct: bool, column: str) -> str:
     return f"{'MAX' if function == 'max' else 'MIN'}({column})"  # MIN serves SAMPLE: any value will do
 
 
-# Nineteen digits in a row: maybe an integer past 64 bits, which orjson would read as a rounded float.
-_LONG_DIGITS = re.compile(r"\d{19}")
+JSON_MARK = " "  # begins a row orjson cannot write (an integer past 64 bits): json wrote it, json reads it
+
+
+def _row_text(row: dict[str, JsonValue]) -> str:
+    """A row as stored: orjson's JSON (NaN and infinities, which JSON cannot hold, become null, as in every
+    answer); json's, marked, for a row holding an integer past 64 bits, which orjson neither writes nor reads
+    back exactly."""
+    try:
+        return orjson.dumps(row).decode()
+    except TypeError:
+        return JSON_MARK + json.dumps(row)
 
 
 def _loaded(text: str) -> dict[str, JsonValue]:
-    """A stored row. orjson reads a page of them several times faster than json (1,000 rows: 1.4 ms against
-    4.7 ms); a row it would read otherwise than json (NaN or an infinity from an odd xsd:double, an integer past
-    64 bits) is read by json."""
-    if _LONG_DIGITS.search(text) is None:
-        try:
-            loaded: dict[str, JsonValue] = orjson.loads(text)
-            return loaded
-        except orjson.JSONDecodeError:
-            pass
-    read: dict[str, JsonValue] = json.loads(text)
-    return read
+    """A stored row, read by whoever wrote it: orjson reads a page of rows several times faster than json
+    (1,000 rows: 1.4 ms against 4.7 ms)."""
+    row: dict[str, JsonValue] = json.loads(text) if text.startswith(JSON_MARK) else orjson.loads(text)
+    return row
 
 
 def _aggregate_output(function: str, value: object) -> JsonValue:
