@@ -62,10 +62,8 @@ def test_the_resource_and_its_explanation_answer(poisoned: LiveServer, path: str
     assert answer.headers["content-type"] == "application/json"
 
 
-def test_a_report_row_holding_an_integer_past_64_bits_answers(memory_api: LiveServer) -> None:
-    """JSON answers are encoded by orjson, which refuses integers past 64 bits; such a value (a robot may log
-    any xsd:integer) must still reach the page whole."""
-    huge = "123456789012345678901234567890"
+def emotion_timeline_with_intensity(server: LiveServer, intensity: str) -> httpx.Response:
+    """The emotion timeline after one reading of the given intensity (a Turtle literal) is posted."""
     turtle = f"""
         @prefix segb: <http://www.gsi.upm.es/ontologies/segb/ns#> .
         @prefix onyx: <http://www.gsi.upm.es/ontologies/onyx/ns#> .
@@ -73,12 +71,20 @@ def test_a_report_row_holding_an_integer_past_64_bits_answers(memory_api: LiveSe
         @prefix prov: <http://www.w3.org/ns/prov#> .
         <{EX}act> segb:producedEntityResult <{EX}ann> ; prov:startedAtTime "2026-01-01T00:00:00Z"^^xsd:dateTime .
         <{EX}ann> onyx:hasEmotion <{EX}emo> ; oa:hasTarget <{EX}h> .
-        <{EX}emo> onyx:hasEmotionCategory <{EX}joy> ; onyx:hasEmotionIntensity "{huge}"^^xsd:integer .
+        <{EX}emo> onyx:hasEmotionCategory <{EX}joy> ; onyx:hasEmotionIntensity {intensity} .
     """
-    posted = httpx.post(f"{memory_api.url}/ttl", content=turtle, headers={"Content-Type": "text/turtle"})
+    posted = httpx.post(f"{server.url}/ttl", content=turtle, headers={"Content-Type": "text/turtle"})
     assert posted.status_code == 201, posted.text
-    page = httpx.get(f"{memory_api.url}/reports/emotion-timeline", timeout=30)
+    page = httpx.get(f"{server.url}/reports/emotion-timeline", timeout=30)
     assert page.status_code == 200, page.text
+    return page
+
+
+def test_a_report_row_holding_an_integer_past_64_bits_answers(memory_api: LiveServer) -> None:
+    """JSON answers are encoded by orjson, which refuses integers past 64 bits; such a value (a robot may log
+    any xsd:integer) must still reach the page whole."""
+    huge = "123456789012345678901234567890"
+    page = emotion_timeline_with_intensity(memory_api, f'"{huge}"^^xsd:integer')
     assert f'"intensity":{huge}' in page.text.replace(" ", "")
 
 
@@ -86,19 +92,7 @@ def test_a_report_row_holding_an_integer_past_64_bits_answers(memory_api: LiveSe
 def test_a_report_row_holding_a_double_json_cannot_write_answers_as_json(memory_api: LiveServer, odd: str) -> None:
     """xsd:double has NaN and infinities, which JSON has no way to write: a page holding one is still JSON any
     strict reader takes, the value left out as null."""
-    turtle = f"""
-        @prefix segb: <http://www.gsi.upm.es/ontologies/segb/ns#> .
-        @prefix onyx: <http://www.gsi.upm.es/ontologies/onyx/ns#> .
-        @prefix oa: <http://www.w3.org/ns/oa#> . @prefix xsd: <http://www.w3.org/2001/XMLSchema#> .
-        @prefix prov: <http://www.w3.org/ns/prov#> .
-        <{EX}act> segb:producedEntityResult <{EX}ann> ; prov:startedAtTime "2026-01-01T00:00:00Z"^^xsd:dateTime .
-        <{EX}ann> onyx:hasEmotion <{EX}emo> ; oa:hasTarget <{EX}h> .
-        <{EX}emo> onyx:hasEmotionCategory <{EX}joy> ; onyx:hasEmotionIntensity "{odd}"^^xsd:double .
-    """
-    posted = httpx.post(f"{memory_api.url}/ttl", content=turtle, headers={"Content-Type": "text/turtle"})
-    assert posted.status_code == 201, posted.text
-    page = httpx.get(f"{memory_api.url}/reports/emotion-timeline", timeout=30)
-    assert page.status_code == 200, page.text
+    page = emotion_timeline_with_intensity(memory_api, f'"{odd}"^^xsd:double')
 
     def refuse(constant: str) -> None:
         raise AssertionError(f"not JSON: {constant}")
