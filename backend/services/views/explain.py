@@ -165,13 +165,14 @@ class _Reader:
 
     def __init__(self, graph: GraphService) -> None:
         self.graph = graph
+        self.pending = graph.on_the_way()  # read once for the whole walk, and before any of the index
         self.cache: dict[str, Resource] = {}
         self.linked: dict[str, None] = {}  # IRIs the nodes read so far link to, not read yet (in order)
 
     def get(self, iri: str) -> Resource:
         if iri not in self.cache:
             batch = [iri, *(linked for linked in self.linked if linked != iri)][:PREFETCH]
-            for body in self.graph.summaries(batch, incoming=FOLLOWED_INCOMING).values():
+            for body in self.graph.summaries(batch, self.pending, incoming=FOLLOWED_INCOMING).values():
                 self._add(Resource(body))
         return self.cache[iri]
 

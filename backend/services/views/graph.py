@@ -106,17 +106,26 @@ class GraphService:
             self._parallel.shutdown(wait=False)
         self.index.close()
 
+    def on_the_way(self) -> list[Quad] | None:
+        """The triples the store has applied and the graph index not yet (a post just answered), read from the
+        journal, for `summaries`; None when the store must answer instead: before the index is built, while a
+        clearing is on its way to it, or more than `PENDING_ENTRIES` steps are. Read it before the index (as a
+        reader calling `summaries` after it does): a step that reaches the index meanwhile is read twice, never
+        missed."""
+        return self.pending(PENDING_ENTRIES) if self.index.ready else None
+
     def summaries(
-        self, iris: Sequence[str], *, incoming: Collection[str], incoming_limit: int = INCOMING_LIMIT
+        self,
+        iris: Sequence[str],
+        pending: list[Quad] | None,
+        *,
+        incoming: Collection[str],
+        incoming_limit: int = INCOMING_LIMIT,
     ) -> dict[str, dict[str, object]]:
         """`resources` for a reader that needs only links, types and the literals the graph index keeps whole
-        (`GraphIndex.kept_literals`), without a store round trip: read from the index, with the steps the store
-        has applied and the index not yet (a post just answered) read from the journal. From the store while a
-        clearing is on its way to the index, when too many steps are, or before the index is built. Linked
-        resources carry no labels here."""
-        # The steps on their way are read before the index: whatever reaches it meanwhile is then read twice,
-        # never missed.
-        pending = self.pending(PENDING_ENTRIES) if self.index.ready else None
+        (`GraphIndex.kept_literals`), without a store round trip: read from the index, with `pending` (what
+        `on_the_way` read, once for all of a reader's calls) added; from the store when `pending` is None.
+        Linked resources carry no labels here."""
         if pending is None:
             return self.resources(iris, incoming=incoming, incoming_limit=incoming_limit)
         iris = list(dict.fromkeys(iris))
