@@ -111,20 +111,22 @@ def rows_of(sparql: str, solutions: QuerySolutions) -> SelectResult:
     columns = [variable.value for variable in solutions.variables]
     rows = []
     seen: set[tuple[object, ...]] = set()
-    distinct = _DISTINCT.match(code_only(sparql)) is not None
+    distinct = _DISTINCT.match(code_only(_head(sparql))) is not None
     for solution in solutions:
-        row = {}
-        for name in columns:
-            value = solution[name]
-            if value is not None:
-                row[name] = value
+        values = tuple(solution)  # in the order of `columns`; far cheaper than a lookup by name each
         if distinct:
-            identity = tuple(row.get(name) for name in columns)
-            if identity in seen:
+            if values in seen:
                 continue
-            seen.add(identity)
-        rows.append(row)
+            seen.add(values)
+        rows.append({name: value for name, value in zip(columns, values, strict=True) if value is not None})
     return SelectResult(columns=columns, rows=rows)
+
+
+def _head(sparql: str) -> str:
+    """The text before the query's first `{`, where its form is written (the whole text when a string or a
+    comment may hold that `{`): the rest is often long VALUES blocks, costly to blank out on every answer."""
+    head = sparql.partition("{")[0]
+    return sparql if any(mark in head for mark in "#\"'") else head
 
 
 # The query's own SELECT (after its prologue) is DISTINCT: a subquery's DISTINCT says nothing of the answer.

@@ -4,6 +4,7 @@ WHERE group opens (for binding values into it)."""
 from __future__ import annotations
 
 import re
+from functools import lru_cache
 
 from segb_server.backend.store.query_form import query_form
 
@@ -33,6 +34,7 @@ def code_only(text: str) -> str:
     return _LEXEMES.sub(blank, text)
 
 
+@lru_cache(maxsize=256)  # a report's text is bound to new values again and again
 def top_level_where(sparql: str) -> int | None:
     """The offset just after the `{` that opens the query's own WHERE group, or None if there is none.
 

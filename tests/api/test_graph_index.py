@@ -164,5 +164,15 @@ def test_the_first_view_is_kept_while_posts_land_after_it_and_drawn_again_when_o
     kept = generation()
     step(activity(6000, "2026-03-09T00:00:00Z"), 3)  # earlier than every drawn activity: it enters the view
     assert generation() != kept
+
+    def named(number: int) -> list[Quad]:
+        label = NamedNode("http://www.w3.org/2000/01/rdf-schema#label")
+        return [Quad(NamedNode(f"{EX}activity/{number}"), label, Literal(f"step {number}"))]
+
+    kept = generation()
+    step(named(1999), 4)  # a node after the view's last one: its new label is not drawn
+    assert generation() == kept
+    step(named(10), 5)  # a drawn node's label
+    assert generation() != kept
     index.close()
     store.close()

@@ -23,6 +23,7 @@ class ViewDatabase:
         self._local = threading.local()
         self._writer_lock = threading.Lock()
         self._writer: sqlite3.Connection | None = None
+        self._writing_thread: int | None = None  # the thread inside `writing()`, whose nested blocks join it
         self._connections: list[sqlite3.Connection] = []
         self._connections_lock = threading.Lock()
         setup = self._connect()
@@ -46,7 +47,8 @@ class ViewDatabase:
         return connection
 
     def writing(self) -> _Writing:
-        """`with database.writing() as connection:` one write transaction, one writer at a time."""
+        """`with database.writing() as connection:` one write transaction, one writer at a time. A `writing()`
+        inside another, on the same thread, joins the outer transaction (several changes, one commit)."""
         return _Writing(self)
 
     def close(self) -> None:
@@ -61,20 +63,30 @@ class ViewDatabase:
 class _Writing:
     def __init__(self, database: ViewDatabase) -> None:
         self._database = database
+        self._outermost = False
 
     def __enter__(self) -> sqlite3.Connection:
-        self._database._writer_lock.acquire()
-        if self._database._writer is None:
-            self._database._writer = self._database._connect()
-        self._database._writer.execute("BEGIN IMMEDIATE")
-        return self._database._writer
+        database = self._database
+        if database._writing_thread == threading.get_ident():
+            assert database._writer is not None
+            return database._writer
+        database._writer_lock.acquire()
+        database._writing_thread = threading.get_ident()
+        self._outermost = True
+        if database._writer is None:
+            database._writer = database._connect()
+        database._writer.execute("BEGIN IMMEDIATE")
+        return database._writer
 
     def __exit__(
         self, kind: type[BaseException] | None, error: BaseException | None, trace: TracebackType | None
     ) -> None:
+        if not self._outermost:
+            return  # an error leaves through the outer block too, which rolls the whole transaction back
         connection = self._database._writer
         try:
             if connection is not None:
                 connection.execute("ROLLBACK" if kind is not None else "COMMIT")
         finally:
+            self._database._writing_thread = None
             self._database._writer_lock.release()

@@ -142,13 +142,14 @@ class GraphIndex:
 
     def update(self, quads: list[Quad], through: int) -> None:
         with self.db.writing() as connection:
-            before = _first_view_rows(connection) if quads else []
+            cutoff = _first_view_cutoff(connection)
+            before = _node_rows(connection, _subjects_and_targets(quads))
             touched, links = _store_facts(connection, quads, self.kept_literals)
             if touched:
-                _derive(connection, sorted(touched | _borrowers(connection, touched)))
-                after = _first_view_rows(connection)
-                drawn = {row[0] for row in after}
-                if after != before or any(source in drawn and target in drawn for source, _, target in links):
+                derived = sorted(touched | _borrowers(connection, touched))
+                before |= _node_rows(connection, [iri for iri in derived if iri not in before])
+                _derive(connection, derived)
+                if _first_view_changed(cutoff, before, _node_rows(connection, derived), links):
                     connection.execute("UPDATE graph_state SET first_view = first_view + 1")
             _set_through(connection, through, changed=bool(touched))
         if touched:
@@ -607,9 +608,52 @@ def _matches(node: dict[str, object], needle: str) -> bool:
     return needle in str(node["label"]).casefold() or needle in str(node["id"]).casefold()
 
 
-def _first_view_rows(connection: Any) -> list[tuple[Any, ...]]:
-    """What the first view draws its nodes from (one row more than its limit: whether it is cut off)."""
-    return connection.execute(*_CandidateQuery(FIRST_VIEW).ordered(FIRST_VIEW.limit + 1)).fetchall()
+# The first view's nodes are the first rows of graph_nodes in this order (`_CandidateQuery` with no filter).
+_FIRST_VIEW_ORDER = "ORDER BY rank, instant, iri"
+_NODE_COLUMNS = "iri, rank, instant, kind, time, label, types"  # the sort key first
+
+
+def _first_view_cutoff(connection: Any) -> tuple[Any, ...] | None:
+    """The sort key of the last row the first view reads (its limit and one more, which tells whether it is cut
+    off); None while there are fewer nodes, when every node is in it."""
+    return connection.execute(
+        f"SELECT rank, instant, iri FROM graph_nodes {_FIRST_VIEW_ORDER} LIMIT 1 OFFSET ?", (FIRST_VIEW.limit,)
+    ).fetchone()
+
+
+def _node_rows(connection: Any, iris: Iterable[str]) -> dict[str, tuple[Any, ...]]:
+    rows: dict[str, tuple[Any, ...]] = {}
+    for chunk in _chunks(sorted(iris)):
+        marks = ", ".join("?" * len(chunk))
+        for row in connection.execute(f"SELECT {_NODE_COLUMNS} FROM graph_nodes WHERE iri IN ({marks})", chunk):
+            rows[row[0]] = row
+    return rows
+
+
+def _first_view_changed(
+    cutoff: tuple[Any, ...] | None,
+    before: dict[str, tuple[Any, ...]],
+    after: dict[str, tuple[Any, ...]],
+    links: list[tuple[str, str, str]],
+) -> bool:
+    """Whether the first view draws something else now that the nodes in `after` (every node written) were
+    `before` (absent: new) and `links` were added. Only a node written inside the view's rows, before or after,
+    changes them; when none did, the view's rows are those up to `cutoff` as before, and a new link changes it
+    when both its ends are among them."""
+
+    def drawn(row: tuple[Any, ...] | None) -> bool:
+        return row is not None and (cutoff is None or (row[1], row[2], row[0]) <= cutoff)
+
+    for iri, row in after.items():
+        old = before.get(iri)
+        if row != old and (drawn(old) or drawn(row)):
+            return True
+    return any(drawn(after.get(source)) and drawn(after.get(target)) for source, _, target in links)
+
+
+def _subjects_and_targets(quads: Iterable[Quad]) -> set[str]:
+    """The IRIs `_store_facts` may add as nodes: named subjects and named objects."""
+    return {term.value for quad in quads for term in (quad.subject, quad.object) if isinstance(term, NamedNode)}
 
 
 def _new_first_view(connection: Any) -> None:

@@ -15,6 +15,7 @@ import logging
 import re
 from collections import deque
 from collections.abc import Iterable
+from dataclasses import dataclass
 
 from pyoxigraph import Literal, Quad, RdfFormat, Triple, parse
 
@@ -72,12 +73,18 @@ class ReportProjection:
     def __init__(self, layout: Layout, unit: str, text: str, fingerprint: str, store: Store, rows: ReportRows):
         self.layout = layout
         self.unit = unit  # variable name (no ?) whose values the rows are replaced by
-        self.text = text  # the query whose answer the rows are (for an aggregate: before grouping)
         self.fingerprint = fingerprint
         self.store = store
         self.rows = rows
         self.name = layout.plan.name
         self.ready = False
+        plan = layout.plan
+        # The query whose answer the rows are (for an aggregate: before grouping), parameters left unbound.
+        self.text = bind_values(text, {PARAMETER_VARIABLE_PREFIX + p: None for p in layout.parameters})
+        self.keys = KeyFinder(plan, unit, ignored=_facet_patterns(plan))
+        self.facet_keys = [
+            (facet, KeyFinder(_facet_plan(plan, facet), facet.anchor[1:])) for facet in plan.facet_filters
+        ]
 
     def stored_through(self) -> int | None:
         fingerprint, through = self.rows.state(self.name)
@@ -95,7 +102,8 @@ class ReportProjection:
         rows = self._evaluate(None)
         self.rows.replace(self.layout, rows, rows, through)
         for facet in self.layout.plan.facet_filters:
-            self._update_facet(facet, None)
+            pairs = self._facet_pairs(facet, None)
+            self.rows.replace_facets(self.layout, facet.parameter, sorted({anchor for anchor, _ in pairs}), pairs)
         self.rows.set_state(self.name, self.fingerprint, through)
         logger.info("report %s built: %d keys", self.name, len(rows))
 
@@ -104,32 +112,38 @@ class ReportProjection:
         self.rows.set_state(self.name, self.fingerprint, through)
 
     def update(self, quads: list[Quad], through: int) -> None:
-        plan = self.layout.plan
+        # The store is asked everything first, then the rows change in one transaction: the reports of a remote
+        # store are updated side by side, and take turns only for writing.
+        replaced: list[str] = []
+        rows: dict[str, list[Row]] = {}
+        facets: list[tuple[FacetFilter, list[str], list[tuple[str, str]]]] = []
         if quads:
-            units = units_touched(plan, self.unit, quads, self.store, ignored=_facet_patterns(plan))
-            if units:
-                rows = self._evaluate(sorted(units))
-                self.rows.replace(self.layout, sorted(units), rows, through)
-            for facet in plan.facet_filters:
-                anchors = units_touched(_facet_plan(plan, facet), facet.anchor[1:], quads, self.store)
+            replaced = sorted(self.keys.units(quads, self.store))
+            rows = self._evaluate(replaced) if replaced else {}
+            for facet, finder in self.facet_keys:
+                anchors = sorted(finder.units(quads, self.store))
                 if anchors:
-                    self._update_facet(facet, sorted(anchors))
-            self.rows.prune_changes(CHANGES_KEPT)
-        self.rows.set_state(self.name, self.fingerprint, through)
+                    facets.append((facet, anchors, self._facet_pairs(facet, anchors)))
+        with self.rows.db.writing():
+            if replaced:
+                self.rows.replace(self.layout, replaced, rows, through)
+            for facet, anchors, pairs in facets:
+                self.rows.replace_facets(self.layout, facet.parameter, anchors, pairs)
+            if quads:
+                self.rows.prune_changes(CHANGES_KEPT)
+            self.rows.set_state(self.name, self.fingerprint, through)
 
     # --- queries -------------------------------------------------------------------------------------
 
     def _evaluate(self, units: list[str] | None) -> dict[str, list[Row]]:
         """The report's rows grouped by unit: for `units` only, or (None) for all."""
-        unbound = {PARAMETER_VARIABLE_PREFIX + p: None for p in self.layout.parameters}
-        text = bind_values(self.text, unbound)
         chunks: list[list[str] | None] = [None] if units is None else _slices(units, VALUES_PER_QUERY)
         grouped: dict[str, list[Row]] = {unit: [] for unit in units or []}
         for chunk in chunks:
             bound = (
-                text
+                self.text
                 if chunk is None
-                else bind_rows(text, [self.unit], [[_term(unit)] for unit in chunk], wrap=self.store.wraps_values)
+                else bind_rows(self.text, [self.unit], [[_term(unit)] for unit in chunk], wrap=self.store.wraps_values)
             )
             for row in select(self.store, bound).rows:
                 unit = row.get(self.unit)
@@ -137,8 +151,8 @@ class ReportProjection:
                     grouped.setdefault(term_text(unit), []).append(row)
         return grouped
 
-    def _update_facet(self, facet: FacetFilter, anchors: list[str] | None) -> None:
-        """The facet's values for `anchors` replaced (None: for every anchor, when the report is built)."""
+    def _facet_pairs(self, facet: FacetFilter, anchors: list[str] | None) -> list[tuple[str, str]]:
+        """The facet's (anchor, value) pairs: for `anchors`, or (None) for every anchor in the store."""
         variable = PARAMETER_VARIABLE_PREFIX + facet.parameter
         selected = f"SELECT DISTINCT {facet.anchor} ?{variable}"
         chunks: list[list[str] | None] = [None] if anchors is None else _slices(anchors, VALUES_PER_QUERY)
@@ -153,55 +167,85 @@ class ReportProjection:
                     anchor, value = row.get(facet.anchor[1:]), row.get(variable)
                     if anchor is not None and value is not None:
                         pairs.append((term_text(anchor), term_text(value)))
-        replaced = sorted({anchor for anchor, _ in pairs}) if anchors is None else anchors
-        self.rows.replace_facets(self.layout, facet.parameter, replaced, pairs)
+        return pairs
 
 
-def units_touched(
-    plan: ReportPlan, unit: str, quads: list[Quad], store: Store, ignored: frozenset[Pattern] = frozenset()
-) -> set[str]:
-    """The units (values of `?unit`, as N-Triples text) whose rows the new `quads` may change; triples matching
-    only `ignored` patterns change none."""
-    target = f"?{unit}"
-    units: set[str] = set()
-    by_predicate: dict[str, list[Quad]] = {}
-    for quad in quads:
-        by_predicate.setdefault(quad.predicate.value, []).append(quad)
-    branches: list[str] = []  # asked together
-    alone: list[str] = []  # asked one by one
-    for pattern in plan.patterns:
-        if pattern in ignored:
-            continue
-        matches = [q for p in pattern.predicates for q in by_predicate.get(p, []) if _fits(plan, pattern, q)]
-        if not matches:
-            continue
-        bindings = [_bind(pattern, q) for q in matches]
-        if target in pattern.variables():
-            units.update(term_text(binding[target]) for binding in bindings if target in binding)
-            continue
-        # One branch per chain, each opening with its own VALUES: they must bind the chain's own group (a BIND
-        # in a UNION branch would not see VALUES outside it, and the branch would reach every unit of the store).
-        for path in paths(plan, pattern, target):
-            # Only the variables the chain goes on from: a chain from a triple's subject needs no VALUES of its
-            # object, and leaving a literal object out lets the branch join the others' UNION (below).
-            names = sorted(name for name in pattern.variables() if _mentions(path, name)) or sorted(pattern.variables())
-            rows = list({tuple(term_text(binding[name]) for name in names): binding for binding in bindings}.values())
-            for start in range(0, len(rows), VALUES_PER_QUERY):
-                chunk = rows[start : start + VALUES_PER_QUERY]
-                values = " ".join("(" + " ".join(term_text(binding[n]) for n in names) + ")" for binding in chunk)
-                branch = f"{{ VALUES ({' '.join(names)}) {{ {values} }} {' '.join(path)} }}"
-                # Virtuoso 7 fails a UNION whose branch binds a literal ("Unknown language in
-                # RDF_LANGUAGE_OF_OBJ"): such a branch is asked alone.
-                has_literal = any(isinstance(binding[n], Literal) for binding in chunk for n in names)
-                (alone if has_literal else branches).append(branch)
-    # The others together: a remote store costs a round trip per query, and a post touches a handful of them.
-    queries = [[branch] for branch in alone]
-    queries += [branches[start : start + BRANCHES_PER_QUERY] for start in range(0, len(branches), BRANCHES_PER_QUERY)]
-    for group in queries:
-        union = " UNION ".join(group)
-        units.update(term_text(row[unit]) for row in select(store, f"SELECT DISTINCT {target} WHERE {{ {union} }}").rows
-                     if unit in row)  # fmt: skip
-    return units
+class KeyFinder:
+    """The units (values of `?unit`, as N-Triples text) that new triples may change, for one plan. The chains from
+    each of the plan's patterns to the unit are found once, when the report is planned (Unsupported when a
+    pattern has none): a post then costs only the matching and the queries. Triples matching only `ignored`
+    patterns change no unit."""
+
+    def __init__(self, plan: ReportPlan, unit: str, ignored: frozenset[Pattern] = frozenset()) -> None:
+        self.plan = plan
+        self.unit = unit
+        self.target = f"?{unit}"
+        self._leads: dict[str, list[_Lead]] = {}
+        for pattern in plan.patterns:
+            lead = _Lead(pattern, [] if self.target in pattern.variables() else _chains(plan, pattern, self.target))
+            if pattern not in ignored:
+                for predicate in pattern.predicates:
+                    self._leads.setdefault(predicate, []).append(lead)
+
+    def units(self, quads: list[Quad], store: Store) -> set[str]:
+        matched: dict[_Lead, list[Quad]] = {}
+        for quad in quads:
+            for lead in self._leads.get(quad.predicate.value, ()):
+                if _fits(self.plan, lead.pattern, quad):
+                    matched.setdefault(lead, []).append(quad)
+        units: set[str] = set()
+        branches: list[str] = []  # asked together
+        alone: list[str] = []  # asked one by one
+        for lead, matches in matched.items():
+            bindings = [_bind(lead.pattern, quad) for quad in matches]
+            if not lead.chains:
+                units.update(term_text(binding[self.target]) for binding in bindings if self.target in binding)
+                continue
+            # One branch per chain, each opening with its own VALUES: they must bind the chain's own group (a BIND
+            # in a UNION branch would not see VALUES outside it, and the branch would reach every unit of the store).
+            for chain in lead.chains:
+                names = chain.names
+                rows = list({tuple(term_text(binding[n]) for n in names): binding for binding in bindings}.values())
+                for start in range(0, len(rows), VALUES_PER_QUERY):
+                    chunk = rows[start : start + VALUES_PER_QUERY]
+                    values = " ".join("(" + " ".join(term_text(binding[n]) for n in names) + ")" for binding in chunk)
+                    branch = f"{{ VALUES ({' '.join(names)}) {{ {values} }} {chain.steps} }}"
+                    # Virtuoso 7 fails a UNION whose branch binds a literal ("Unknown language in
+                    # RDF_LANGUAGE_OF_OBJ"): such a branch is asked alone.
+                    has_literal = any(isinstance(binding[n], Literal) for binding in chunk for n in names)
+                    (alone if has_literal else branches).append(branch)
+        # The others together: a remote store costs a round trip per query, and a post touches a handful of them.
+        queries = [[branch] for branch in alone]
+        queries += [branches[at : at + BRANCHES_PER_QUERY] for at in range(0, len(branches), BRANCHES_PER_QUERY)]
+        for group in queries:
+            union = " UNION ".join(group)
+            answer = select(store, f"SELECT DISTINCT {self.target} WHERE {{ {union} }}")
+            units.update(term_text(row[self.unit]) for row in answer.rows if self.unit in row)
+        return units
+
+
+@dataclass(frozen=True)
+class _Chain:
+    steps: str  # the SPARQL steps from the pattern's variables to the unit
+    names: tuple[str, ...]  # the pattern's variables the steps go on from (bound by VALUES)
+
+
+@dataclass(frozen=True, eq=False)
+class _Lead:
+    """A pattern, and the chains from its variables to the unit (none: the pattern holds the unit itself)."""
+
+    pattern: Pattern
+    chains: list[_Chain]
+
+
+def _chains(plan: ReportPlan, pattern: Pattern, target: str) -> list[_Chain]:
+    chains = []
+    for path in paths(plan, pattern, target):
+        # Only the variables the chain goes on from: a chain from a triple's subject needs no VALUES of its
+        # object, and leaving a literal object out lets the branch join the others' UNION.
+        names = sorted(name for name in pattern.variables() if _mentions(path, name)) or sorted(pattern.variables())
+        chains.append(_Chain(" ".join(path), tuple(names)))
+    return chains
 
 
 def _mentions(path: list[str], variable: str) -> bool:
@@ -323,23 +367,14 @@ def _projection(query: CatalogQuery, plan: ReportPlan, store: Store, rows: Repor
         unit = counted[0].argument[1:]
         inputs = dict.fromkeys([*plan.group_by, counted[0].argument, *(a.argument for a in plan.aggregates)])
         text = _before_grouping(query.text, list(inputs))
-        _check_reachable(plan, counted[0].argument)
     else:
         if len(plan.key) != 1:
             raise Unsupported("a report's key is one variable")
         unit = plan.key[0][1:]
         text = query.text
-        _check_reachable(plan, plan.key[0])
     layout = Layout(f"report_{re.sub(r'[^a-z0-9]', '_', query.name.lower())}", plan, query.parameters)
     fingerprint = hashlib.sha256(f"{PLAN_VERSION}\n{query.text}".encode()).hexdigest()
     return ReportProjection(layout, unit, text, fingerprint, store, rows)
-
-
-def _check_reachable(plan: ReportPlan, target: str) -> None:
-    """Every pattern must lead to the unit variable, or new triples it matches could not be traced to rows."""
-    for pattern in plan.patterns:
-        if target not in pattern.variables():
-            paths(plan, pattern, target)
 
 
 _SELECT = re.compile(r"\bSELECT\b.*?\bWHERE\b", re.IGNORECASE | re.DOTALL)
