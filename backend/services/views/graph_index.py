@@ -597,8 +597,9 @@ def _edges(connection: Any, iris: list[str]) -> list[dict[str, str]]:
         (listed, listed),
     ).fetchall()
     primary_pairs = {(s, o) for s, p, o in links if not p.startswith(PROV)}
+    labels = {p: local_name(p) for p in {p for _, p, _ in links}}  # a few predicates label thousands of links
     return [
-        {"id": f"{s} {p} {o}", "source": s, "target": o, "predicate": p, "label": local_name(p)}
+        {"id": f"{s} {p} {o}", "source": s, "target": o, "predicate": p, "label": labels[p]}
         for s, p, o in links
         if not (p.startswith(PROV) and (s, o) in primary_pairs)
     ]
