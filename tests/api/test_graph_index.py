@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import logging
 import shutil
+import sqlite3
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -16,7 +17,7 @@ from pyoxigraph import Literal, NamedNode, Quad
 
 from segb_server.backend.api.app import create_app
 from segb_server.backend.services.container import GRAPH_FILE
-from segb_server.backend.services.views.graph_index import FIRST_VIEW, GraphIndex, GraphRequest
+from segb_server.backend.services.views.graph_index import FIRST_VIEW, INDEX_VERSION, GraphIndex, GraphRequest
 from segb_server.backend.store.base import Store
 from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.conftest import STORE_KINDS, make_settings, virtuoso_store
@@ -119,6 +120,40 @@ def test_a_restart_catches_the_index_up_from_the_journal(tmp_path: Path, caplog:
             assert served(live.url, REQUESTS[0]) == current == fresh(store, REQUESTS[0])
         built = [record.getMessage() for record in caplog.records if record.getMessage().startswith("view graph built")]
         assert built == []  # caught up from the journal, not built again from the store
+    finally:
+        store.close()
+
+
+def test_an_index_written_with_other_tables_is_built_again_at_start(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """An index left by a version whose tables differ (here: its state without the first view's counter, and the
+    version number of then) is built again from the store, never updated in place (which failed on the missing
+    column, and dropped every view)."""
+    store = OxigraphStore("http://amor-segb/events", tmp_path / "oxigraph")
+    settings = make_settings(store="oxigraph", data_dir=tmp_path / "data")
+    history = History(5)
+    caplog.set_level(logging.INFO, logger="segb.views")
+    try:
+        with LiveServer(create_app(settings, store=store)) as live:
+            for _ in range(3):
+                post(live.url, history.next_post() or [])
+            settle(live.url)
+        database = sqlite3.connect(settings.data_dir / GRAPH_FILE)
+        database.execute("ALTER TABLE graph_state DROP COLUMN first_view")
+        database.execute("UPDATE graph_state SET version = ?", (INDEX_VERSION,))
+        database.commit()
+        database.close()
+        caplog.clear()
+        with LiveServer(create_app(settings, store=store)) as live:
+            settle(live.url)
+            post(live.url, history.next_post() or [])
+            settle(live.url)
+            for request in (FIRST_VIEW, REQUESTS[0]):
+                assert served(live.url, request) == fresh(store, request), request
+        messages = [record.getMessage() for record in caplog.records]
+        assert any(message.startswith("view graph built") for message in messages)
+        assert not any("failed" in message for message in messages), messages
     finally:
         store.close()
 

@@ -10,6 +10,7 @@ order, filters become conditions, a neighbourhood a recursive query over the lin
 
 from __future__ import annotations
 
+import hashlib
 import json
 import logging
 from collections import defaultdict
@@ -79,6 +80,10 @@ SCHEMA = [
     "CREATE INDEX IF NOT EXISTS graph_nodes_instant ON graph_nodes (instant)",
 ]
 RANK = {kind: index for index, kind in enumerate(KINDS)}
+# What an index records as its version: a change to the tables is a new version too, so an index written before
+# it is built again instead of failing on a column it lacks.
+_SCHEMA_DIGEST = hashlib.sha256("\n".join(SCHEMA).encode()).hexdigest()[:12]
+STORED_VERSION = f"{INDEX_VERSION}-{_SCHEMA_DIGEST}"
 
 
 @dataclass(frozen=True)
@@ -115,11 +120,11 @@ class GraphIndex:
 
     def stored_through(self) -> int | None:
         row = self.db.reader().execute("SELECT version, through FROM graph_state").fetchone()
-        return row[1] if row is not None and row[0] == INDEX_VERSION else None
+        return row[1] if row is not None and row[0] == STORED_VERSION else None
 
     def follow(self) -> int | None:
         row = self.db.reader().execute("SELECT version, through, changed FROM graph_state").fetchone()
-        if row is None or row[0] != INDEX_VERSION:
+        if row is None or row[0] != STORED_VERSION:
             return None
         self.changed_through = row[2]
         return int(row[1])
@@ -667,7 +672,7 @@ def _set_through(connection: Any, through: int, *, changed: bool) -> None:
         "INSERT INTO graph_state (id, version, through, changed) VALUES (1, ?, ?, ?) ON CONFLICT (id) DO UPDATE SET "
         "version = excluded.version, through = excluded.through, changed = CASE WHEN ? THEN excluded.through "
         "ELSE changed END",
-        (INDEX_VERSION, through, through, changed),
+        (STORED_VERSION, through, through, changed),
     )
 
 

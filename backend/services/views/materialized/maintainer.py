@@ -373,7 +373,8 @@ def _projection(query: CatalogQuery, plan: ReportPlan, store: Store, rows: Repor
         unit = plan.key[0][1:]
         text = query.text
     layout = Layout(f"report_{re.sub(r'[^a-z0-9]', '_', query.name.lower())}", plan, query.parameters)
-    fingerprint = hashlib.sha256(f"{PLAN_VERSION}\n{query.text}".encode()).hexdigest()
+    # The tables' schema counts too: rows stored in another layout are built again, not read.
+    fingerprint = hashlib.sha256("\n".join([PLAN_VERSION, query.text, *layout.schema()]).encode()).hexdigest()
     return ReportProjection(layout, unit, text, fingerprint, store, rows)
 
 
