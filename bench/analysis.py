@@ -224,6 +224,10 @@ def live_notes(live: dict[tuple[str, int], LiveReports]) -> list[str]:
             "On Virtuoso the p95s are two to four times the embedded store's for the same pages, though neither",
             "store is asked: Virtuoso answers the views' upkeep queries on the same 2 cores as the server, the",
             "robot and the auditor, and a request that meets such a moment waits for a core. The p50s are alike.",
+            "Most of that upkeep is Virtuoso planning each query again, since every batch binds new keys into the",
+            "text (section 1, *Virtuoso's floor*). Its SPARQL endpoint cannot be handed the keys beside a text that",
+            "stays the same (a URL parameter named after a `?:` variable left the variable unbound when tried), so",
+            "asking fewer, larger queries per batch is what is left to shorten these tails.",
             "",
         ]
     )
