@@ -1,5 +1,6 @@
 """A report is added by dropping a `.rq` file in `sparql/reports/`, no Python: with a `# key:` line its rows
-are kept current; with a construct the rows cannot follow (here MINUS) it is evaluated in full, and says so."""
+are kept current; with a construct the rows cannot follow (here MINUS) it is evaluated in full, and says so.
+A filter on a parameter through EXISTS is served from the rows with everything its body says, VALUES too."""
 
 from __future__ import annotations
 
@@ -42,6 +43,20 @@ SELECT ?agent WHERE {{
 ORDER BY ?agent
 """
 
+# Agents who know the given person: the EXISTS body narrows the friend's class with VALUES.
+BY_FRIEND = f"""# title: Agents by friend
+# key: ?agent
+# description: Every agent with a first name, or only those who know the given person.
+# param friend: iri — only agents who know this person
+{PREFIXES}
+SELECT ?agent ?name WHERE {{
+  ?agent foaf:firstName ?name .
+  FILTER (!BOUND(?param_friend)
+          || EXISTS {{ ?agent foaf:knows ?param_friend . ?param_friend a ?kind . VALUES ?kind {{ foaf:Person }} }})
+}}
+ORDER BY ?name ?agent
+"""
+
 
 def people(count: int, start: int = 0) -> str:
     lines = [f"<https://example.org/p/{i:03d}> a <http://www.w3.org/ns/prov#Agent> ." for i in range(start, count)]
@@ -59,6 +74,7 @@ def server(tmp_path: Path) -> Iterator[str]:
     shutil.copytree(PACKAGE_ROOT / "sparql", sparql)
     (sparql / "reports" / "named-agents.rq").write_text(NAMED)
     (sparql / "reports" / "unnamed-agents.rq").write_text(UNNAMED)
+    (sparql / "reports" / "agents-by-friend.rq").write_text(BY_FRIEND)
     with LiveServer(create_app(make_settings(sparql_dir=sparql))) as live:
         yield live.url
 
@@ -94,3 +110,24 @@ def test_a_report_the_rows_cannot_follow_is_evaluated_in_full(server: str) -> No
     refused = httpx.get(f"{server}/reports/unnamed-agents", params={"after": body["rows"][0]["agent"]}, timeout=30)
     assert refused.status_code == 422
     assert "after" in refused.json()["detail"] and "offset" in refused.json()["detail"]
+
+
+def test_a_filter_through_exists_keeps_the_values_its_body_narrows_to(server: str) -> None:
+    """P000 knows P001, a person; P002 knows P003, an agent but not a person: only P000 knows a person."""
+    person, agent = "http://xmlns.com/foaf/0.1/Person", "http://www.w3.org/ns/prov#Agent"
+    knows = "http://xmlns.com/foaf/0.1/knows"
+    post(server, people(4))
+    post(
+        server,
+        f"""<https://example.org/p/000> <{knows}> <https://example.org/p/001> .
+<https://example.org/p/001> a <{person}> .
+<https://example.org/p/002> <{knows}> <https://example.org/p/003> .
+<https://example.org/p/003> a <{agent}> .""",
+    )
+    settle(server)
+    for friend, expected in (("001", ["P000"]), ("003", [])):
+        body = httpx.get(
+            f"{server}/reports/agents-by-friend", params={"friend": f"https://example.org/p/{friend}"}, timeout=30
+        ).json()
+        assert body["served_from"] == "rows"
+        assert [row["name"] for row in body["rows"]] == expected, friend

@@ -162,7 +162,8 @@ class ReportProjection:
         for chunk in chunks:
             values = "" if chunk is None else f"VALUES {facet.anchor} {{ {' '.join(chunk)} }} "
             for body in facet.bodies:
-                query = f"{selected} WHERE {{ {values}{' '.join(p.sparql() for p in body)} }}"
+                patterns = " ".join(p.sparql() for p in body)
+                query = f"{selected} WHERE {{ {values}{_narrowing(self.layout.plan, body)}{patterns} }}"
                 for row in select(self.store, query).rows:
                     anchor, value = row.get(facet.anchor[1:]), row.get(variable)
                     if anchor is not None and value is not None:
@@ -345,6 +346,17 @@ def _facet_plan(plan: ReportPlan, facet: FacetFilter) -> ReportPlan:
         guaranteed={group: {group} for group in groups},
         mandatory={group: [p for p in patterns if p.group == group] for group in groups},
         narrowed=plan.narrowed,
+    )
+
+
+def _narrowing(plan: ReportPlan, body: tuple[Pattern, ...]) -> str:
+    """The VALUES an EXISTS body narrows its variables with (`VALUES ?kind { foaf:Person }`), which its patterns
+    alone do not say."""
+    groups = {pattern.group for pattern in body}
+    return "".join(
+        f"VALUES {variable} {{ {' '.join(sorted(allowed))} }} "
+        for (group, variable), allowed in sorted(plan.narrowed.items())
+        if group in groups
     )
 
 
