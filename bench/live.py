@@ -97,7 +97,7 @@ def live_reports(
         background = Background()
         with ReadinessProbe(server.url, interval=0.2) as probe, publishing(server.url, posts, rate, background):
             pages = measure_pages(client, samples, repeats)
-            views = measure_views(client, samples, VIEW_REPEATS)
+            views = measure_views(client, samples, robot_of(posts[0].payload), VIEW_REPEATS)
         lag = LagFigures.of(probe.samples, wait_caught_up(server.url))
     return LiveReports(
         triples=triples,
@@ -233,11 +233,13 @@ def timed(client: httpx.Client, path: str, params: dict[str, str], repeats: int)
     return Timed(Latency.of(seconds), answer, failure)
 
 
-def measure_views(client: httpx.Client, samples: Samples, repeats: int) -> dict[str, Timed]:
-    """The graph page's first view, a robot's neighbourhood, and the explanation of a message."""
+def measure_views(client: httpx.Client, samples: Samples, publishing: str, repeats: int) -> dict[str, Timed]:
+    """The graph page's first view, a robot's neighbourhood (one of the loaded robots, and the robot publishing
+    meanwhile, whose neighbourhood every post changes), and the explanation of a message."""
     views = {
         "`/graph` (first view, default limit)": ("/graph", {}),
         "`/graph?focus=<robot>&depth=1`": ("/graph", {"focus": samples.robot, "depth": "1"}),
+        "`/graph?focus=<the robot publishing>&depth=1`": ("/graph", {"focus": publishing, "depth": "1"}),
         "`/explain?iri=<message>`": ("/explain", {"iri": samples.message}),
     }
     return {label: timed(client, path, params, repeats) for label, (path, params) in views.items()}

@@ -8,6 +8,7 @@ from __future__ import annotations
 import logging
 import shutil
 import sqlite3
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -31,6 +32,7 @@ REQUESTS = [
     GraphRequest(limit=20_000),
     GraphRequest(limit=20_000, robot=f"{EX}robot/ari"),
     GraphRequest(limit=20_000, focus=f"{EX}human/maria", depth=2),
+    GraphRequest(focus=f"{EX}robot/ari", depth=1),  # kept between the changes that reach it
     GraphRequest(limit=30),  # the first view cut short: which nodes come first matters too
     GraphRequest(),  # the kg-graph's first view, which is kept between changes that reach it
 ]
@@ -211,3 +213,108 @@ def test_the_first_view_is_kept_while_posts_land_after_it_and_drawn_again_when_o
     assert generation() != kept
     index.close()
     store.close()
+
+
+def test_a_neighbourhood_is_kept_while_other_robots_post_and_drawn_again_when_a_change_reaches_it(
+    tmp_path: Path,
+) -> None:
+    """`/graph?focus=<robot>` depends only on the nodes within its depth: posts of another robot leave it kept,
+    a post of its own robot (or a link into it, or a clearing) draws it again; kept or drawn, it equals the view
+    of an index built afresh."""
+    prov, segb = "http://www.w3.org/ns/prov#", "http://www.gsi.upm.es/ontologies/segb/ns#"
+
+    def activity(robot: str, number: int) -> list[Quad]:
+        node = NamedNode(f"{EX}activity/{robot}/{number}")
+        return [
+            Quad(node, NamedNode(prov + "startedAtTime"),
+                 Literal(f"2026-03-10T00:00:{number % 60:02d}Z", datatype=NamedNode(XSD_DATETIME))),
+            Quad(node, NamedNode(segb + "wasPerformedBy"), NamedNode(f"{EX}robot/{robot}")),
+        ]  # fmt: skip
+
+    store = OxigraphStore("http://amor-segb/events")
+    store.apply([q for n in range(50) for robot in ("ari", "bo") for q in activity(robot, n)], 0)
+    index = GraphIndex(store, tmp_path / "graph.sqlite3")
+    index.build(0)
+    drawn: list[GraphRequest] = []
+    draw = index._drawn_and_reached
+
+    def counted(connection: object, request: GraphRequest) -> tuple[dict[str, object], frozenset[str]]:
+        drawn.append(request)
+        return draw(connection, request)
+
+    index._drawn_and_reached = counted  # type: ignore[method-assign]
+    ari = GraphRequest(focus=f"{EX}robot/ari", depth=1)
+
+    def step(quads: list[Quad] | None, through: int) -> int:
+        """Apply a step (None: a clearing); how many times the neighbourhood was drawn to answer it."""
+        if quads is None:
+            store.clear(through)
+            index.clear(through)
+        else:
+            store.apply(quads, through)
+            index.update(quads, through)
+        before = len(drawn)
+        assert index.view(ari) == fresh(store, ari), through
+        return len(drawn) - before
+
+    try:
+        assert step([], 0) == 1  # the first request draws it
+        assert step(activity("bo", 100), 1) == 0  # another robot's post: kept
+        assert step(activity("bo", 101), 2) == 0
+        assert step(activity("ari", 100), 3) == 1  # its own robot's post reaches it
+        assert step(activity("bo", 102), 4) == 0
+        late_link = [Quad(NamedNode(f"{EX}activity/bo/0"), NamedNode(segb + "triggeredByActivity"),
+                          NamedNode(f"{EX}activity/ari/0"))]  # fmt: skip
+        assert step(late_link, 5) == 1  # a link into it from outside
+        assert step(None, 6) == 1  # a clearing
+        assert step(activity("ari", 200), 7) == 1
+    finally:
+        index.close()
+        store.close()
+
+
+def test_kept_neighbourhoods_under_concurrent_requests_and_updates_end_equal_a_fresh_index(tmp_path: Path) -> None:
+    """Requests in a pool of threads (as the API serves them) ask several neighbourhoods while steps land:
+    nothing fails, and once the steps stop every neighbourhood equals a fresh index's."""
+    segb = "http://www.gsi.upm.es/ontologies/segb/ns#"
+    robots = ["ari", "bo", "cy"]
+
+    def activity(robot: str, number: int) -> list[Quad]:
+        node = NamedNode(f"{EX}activity/{robot}/{number}")
+        return [Quad(node, NamedNode(segb + "wasPerformedBy"), NamedNode(f"{EX}robot/{robot}"))]
+
+    store = OxigraphStore("http://amor-segb/events")
+    store.apply([q for n in range(20) for robot in robots for q in activity(robot, n)], 0)
+    index = GraphIndex(store, tmp_path / "graph.sqlite3")
+    index.build(0)
+    requests = [GraphRequest(focus=f"{EX}robot/{robot}", depth=depth) for robot in robots for depth in (1, 2)]
+    errors: list[BaseException] = []
+    writing = threading.Event()
+
+    def read() -> None:
+        try:
+            while writing.is_set():
+                for request in requests:
+                    index.view(request)
+        except BaseException as error:  # reported below: a thread's exception would otherwise be lost
+            errors.append(error)
+
+    readers = [threading.Thread(target=read) for _ in range(6)]
+    writing.set()
+    try:
+        for reader in readers:
+            reader.start()
+        for through in range(1, 61):
+            quads = activity(robots[through % 3], 100 + through)
+            store.apply(quads, through)
+            index.update(quads, through)
+        writing.clear()
+        for reader in readers:
+            reader.join()
+        assert errors == []
+        for request in requests:
+            assert index.view(request) == fresh(store, request), request
+    finally:
+        writing.clear()
+        index.close()
+        store.close()

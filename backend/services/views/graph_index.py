@@ -25,6 +25,7 @@ from typing import Any
 from pyoxigraph import Literal, NamedNode, Quad
 
 from segb_server.backend.services.views.database import ViewDatabase
+from segb_server.backend.services.views.neighbourhoods import KeptNeighbourhoods
 from segb_server.backend.services.views.term_values import iso_time
 from segb_server.backend.store.base import Store, Term
 from segb_server.backend.vocabulary import KINDS, PREFIXES, Kind, compact, kind_of
@@ -53,15 +54,28 @@ MAX_LABEL = 60
 UNTIMED = "~"  # sorts after every instant
 CHUNK = 400  # IRIs per IN (…) list
 
-TABLES = ("graph_state", "graph_types", "graph_literals", "graph_details", "graph_links", "graph_nodes")
+TABLES = (
+    "graph_state",
+    "graph_types",
+    "graph_literals",
+    "graph_details",
+    "graph_links",
+    "graph_nodes",
+    "graph_changes",
+)
+CHANGES_KEPT_STEPS = 2_000  # journal steps the change log covers (a neighbourhood kept longer is drawn again)
 SCHEMA = [
     # nodes: how many rows graph_nodes holds (nodes are only ever added, until a clearing), for the first view's
     # total without counting them; changed: the entry of the last change to what is drawn (for live viewers of
     # every API process)
     # first_view: changes whenever the first view (`FIRST_VIEW`) would draw something else, so every process may
     # keep that view, the one each visit opens with, until it does
+    # changes_from: the entry after which `graph_changes` holds every node each step wrote (`neighbourhoods`)
     "CREATE TABLE IF NOT EXISTS graph_state (id INTEGER PRIMARY KEY CHECK (id = 1), version TEXT, through INTEGER, "
-    "nodes INTEGER NOT NULL DEFAULT 0, changed INTEGER NOT NULL DEFAULT 0, first_view INTEGER NOT NULL DEFAULT 0)",
+    "nodes INTEGER NOT NULL DEFAULT 0, changed INTEGER NOT NULL DEFAULT 0, first_view INTEGER NOT NULL DEFAULT 0, "
+    "changes_from INTEGER NOT NULL DEFAULT 0)",
+    "CREATE TABLE IF NOT EXISTS graph_changes (seq INTEGER NOT NULL, iri TEXT NOT NULL)",
+    "CREATE INDEX IF NOT EXISTS graph_changes_by_seq ON graph_changes (seq)",
     "CREATE TABLE IF NOT EXISTS graph_types (iri TEXT, type TEXT, PRIMARY KEY (iri, type)) WITHOUT ROWID",
     "CREATE TABLE IF NOT EXISTS graph_literals (iri TEXT, predicate TEXT, value TEXT, PRIMARY KEY (iri, predicate))"
     " WITHOUT ROWID",
@@ -115,6 +129,7 @@ class GraphIndex:
         # moves. Kept in memory by the process that keeps the index, read by `follow` in the others.
         self.changed_through = 0
         self._first_view: tuple[int, dict[str, object]] | None = None  # (graph_state.first_view, the view)
+        self._neighbourhoods = KeptNeighbourhoods()
 
     # --- Projection ----------------------------------------------------------------------------------
 
@@ -138,6 +153,7 @@ class GraphIndex:
                 connection.execute(statement)
             _set_through(connection, through, changed=True)
             _new_first_view(connection)
+            connection.execute("UPDATE graph_state SET changes_from = ?", (through,))
             for batch in self.store.batches(20_000):
                 _store_facts(connection, batch, self.kept_literals)
             iris = [row[0] for row in connection.execute("SELECT iri FROM graph_nodes")]
@@ -156,6 +172,7 @@ class GraphIndex:
                 _derive(connection, derived)
                 if _first_view_changed(cutoff, before, _node_rows(connection, derived), links):
                     connection.execute("UPDATE graph_state SET first_view = first_view + 1")
+                _record_changes(connection, derived, through)
             _set_through(connection, through, changed=bool(touched))
         if touched:
             self.changed_through = through
@@ -166,6 +183,7 @@ class GraphIndex:
                 connection.execute(f"DELETE FROM {table}")
             _set_through(connection, through, changed=True)
             _new_first_view(connection)
+            connection.execute("UPDATE graph_state SET changes_from = ?", (through,))
         self.changed_through = through
 
     def close(self) -> None:
@@ -177,6 +195,8 @@ class GraphIndex:
         """The nodes and edges to draw, most relevant first, cut at `request.limit`. The first view is kept
         until a change reaches what it draws: under a stream of posts, the new nodes sort after its last."""
         connection = self.db.reader()
+        if request.focus:
+            return self._neighbourhoods.view(connection, request, lambda: self._drawn_and_reached(connection, request))
         if request != FIRST_VIEW:
             return self._view(connection, request)
         state = connection.execute("SELECT first_view, nodes FROM graph_state").fetchone()
@@ -188,6 +208,11 @@ class GraphIndex:
             kept = self._first_view = (generation, self._view(connection, request))
         view = kept[1]
         return {**view, "total_nodes": total if view["truncated"] else view["total_nodes"]}
+
+    def _drawn_and_reached(self, connection: Any, request: GraphRequest) -> tuple[dict[str, object], frozenset[str]]:
+        """A neighbourhood's view, and every node within its depth (what a change must write to change it)."""
+        reached = frozenset(row[0] for row in connection.execute(*_CandidateQuery(request).reached()))
+        return self._view(connection, request), reached
 
     def _view(self, connection: Any, request: GraphRequest) -> dict[str, object]:
         query = _CandidateQuery(request)
@@ -374,6 +399,11 @@ class _CandidateQuery:
 
     def count(self) -> tuple[str, list[object]]:
         return self._select("COUNT(*)")
+
+    def reached(self) -> tuple[str, list[object]]:
+        """Every node within a focus request's depth, whatever its other filters."""
+        assert self.distance, "only a request with a focus reaches nodes"
+        return f"WITH RECURSIVE {', '.join(self.ctes)} SELECT iri FROM distance", list(self.arguments)
 
 
 # --- facts and derived rows ----------------------------------------------------------------------------
@@ -665,6 +695,15 @@ def _subjects_and_targets(quads: Iterable[Quad]) -> set[str]:
 def _new_first_view(connection: Any) -> None:
     """A first view unlike any kept one (after a build or a clearing, which start the counter again)."""
     connection.execute("UPDATE graph_state SET first_view = ?", (time_ns(),))
+
+
+def _record_changes(connection: Any, iris: Sequence[str], through: int) -> None:
+    """Log the nodes step `through` wrote, for kept neighbourhoods, and forget the steps past what the log keeps."""
+    connection.executemany("INSERT INTO graph_changes VALUES (?, ?)", [(through, iri) for iri in iris])
+    oldest = through - CHANGES_KEPT_STEPS
+    if connection.execute("SELECT 1 FROM graph_changes WHERE seq <= ? LIMIT 1", (oldest,)).fetchone():
+        connection.execute("DELETE FROM graph_changes WHERE seq <= ?", (oldest,))
+        connection.execute("UPDATE graph_state SET changes_from = MAX(changes_from, ?)", (oldest,))
 
 
 def _set_through(connection: Any, through: int, *, changed: bool) -> None:
