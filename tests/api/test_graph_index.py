@@ -18,6 +18,7 @@ from pyoxigraph import Literal, NamedNode, Quad
 
 from segb_server.backend.api.app import create_app
 from segb_server.backend.services.container import GRAPH_FILE
+from segb_server.backend.services.views import graph_index
 from segb_server.backend.services.views.graph_index import FIRST_VIEW, INDEX_VERSION, GraphIndex, GraphRequest
 from segb_server.backend.store.base import Store
 from segb_server.backend.store.oxigraph import OxigraphStore
@@ -238,7 +239,7 @@ def test_a_neighbourhood_is_kept_while_other_robots_post_and_drawn_again_when_a_
     drawn: list[GraphRequest] = []
     draw = index._drawn_and_reached
 
-    def counted(connection: object, request: GraphRequest) -> tuple[dict[str, object], frozenset[str]]:
+    def counted(connection: object, request: GraphRequest) -> tuple[dict[str, object], frozenset[str] | None]:
         drawn.append(request)
         return draw(connection, request)
 
@@ -316,5 +317,35 @@ def test_kept_neighbourhoods_under_concurrent_requests_and_updates_end_equal_a_f
             assert index.view(request) == fresh(store, request), request
     finally:
         writing.clear()
+        index.close()
+        store.close()
+
+
+def test_a_neighbourhood_reaching_too_many_nodes_is_drawn_at_every_request(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """What a kept view reaches is held in memory: past the bound, the view is drawn each time instead."""
+    segb = "http://www.gsi.upm.es/ontologies/segb/ns#"
+    monkeypatch.setattr(graph_index, "MAX_KEPT_REACH", 10)
+    store = OxigraphStore("http://amor-segb/events")
+    robot = NamedNode(f"{EX}robot/ari")
+    store.apply([Quad(NamedNode(f"{EX}activity/{n}"), NamedNode(segb + "wasPerformedBy"), robot) for n in range(30)], 0)
+    index = GraphIndex(store, tmp_path / "graph.sqlite3")
+    index.build(0)
+    drawn: list[GraphRequest] = []
+    draw = index._drawn_and_reached
+
+    def counted(connection: object, request: GraphRequest) -> tuple[dict[str, object], frozenset[str] | None]:
+        drawn.append(request)
+        return draw(connection, request)
+
+    index._drawn_and_reached = counted  # type: ignore[method-assign]
+    try:
+        for request in (GraphRequest(focus=robot.value, depth=1), GraphRequest(focus=f"{EX}activity/0", depth=0)):
+            drawn.clear()
+            for _ in range(3):
+                assert index.view(request) == fresh(store, request)
+            assert len(drawn) == (3 if request.depth else 1), request  # 31 nodes reached, or only itself
+    finally:
         index.close()
         store.close()

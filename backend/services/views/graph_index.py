@@ -25,7 +25,7 @@ from typing import Any
 from pyoxigraph import Literal, NamedNode, Quad
 
 from segb_server.backend.services.views.database import ViewDatabase
-from segb_server.backend.services.views.neighbourhoods import KeptNeighbourhoods
+from segb_server.backend.services.views.neighbourhoods import MAX_KEPT_REACH, KeptNeighbourhoods
 from segb_server.backend.services.views.term_values import iso_time
 from segb_server.backend.store.base import Store, Term
 from segb_server.backend.vocabulary import KINDS, PREFIXES, Kind, compact, kind_of
@@ -209,9 +209,14 @@ class GraphIndex:
         view = kept[1]
         return {**view, "total_nodes": total if view["truncated"] else view["total_nodes"]}
 
-    def _drawn_and_reached(self, connection: Any, request: GraphRequest) -> tuple[dict[str, object], frozenset[str]]:
-        """A neighbourhood's view, and every node within its depth (what a change must write to change it)."""
-        reached = frozenset(row[0] for row in connection.execute(*_CandidateQuery(request).reached()))
+    def _drawn_and_reached(
+        self, connection: Any, request: GraphRequest
+    ) -> tuple[dict[str, object], frozenset[str] | None]:
+        """A neighbourhood's view, and every node within its depth (what a change must write to change it; None
+        past `MAX_KEPT_REACH` nodes)."""
+        text, arguments = _CandidateQuery(request).reached()
+        found = [row[0] for row in connection.execute(f"{text} LIMIT ?", [*arguments, MAX_KEPT_REACH + 1])]
+        reached = frozenset(found) if len(found) <= MAX_KEPT_REACH else None
         return self._view(connection, request), reached
 
     def _view(self, connection: Any, request: GraphRequest) -> dict[str, object]:

@@ -17,6 +17,9 @@ from dataclasses import dataclass
 from typing import Any
 
 KEPT_VIEWS = 64  # neighbourhoods kept per process, the least recently asked dropped first
+# A neighbourhood reaching more nodes is drawn at every request: keeping what it reaches would let a few deep
+# requests around hubs hold hundreds of megabytes.
+MAX_KEPT_REACH = 20_000
 
 
 @dataclass(frozen=True)
@@ -35,9 +38,10 @@ class KeptNeighbourhoods:
         self,
         connection: Any,
         request: object,
-        draw: Callable[[], tuple[dict[str, object], frozenset[str]]],
+        draw: Callable[[], tuple[dict[str, object], frozenset[str] | None]],
     ) -> dict[str, object]:
-        """`request`'s view: kept, or drawn by `draw` (the view and the nodes it reaches) and kept."""
+        """`request`'s view: kept, or drawn by `draw` (the view, and the nodes it reaches or None when they are
+        more than `MAX_KEPT_REACH`) and kept."""
         state = connection.execute("SELECT through, changes_from FROM graph_state").fetchone()
         if state is None:
             return draw()[0]
@@ -51,6 +55,8 @@ class KeptNeighbourhoods:
                 self._kept[request] = _Kept(max(kept.through, through), kept.reached, kept.view)
             return kept.view
         view, reached = draw()
+        if reached is None:
+            return view
         with self._lock:
             self._kept[request] = _Kept(through, reached, view)
             self._kept.move_to_end(request)
