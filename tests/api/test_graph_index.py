@@ -61,6 +61,19 @@ def fresh(store: Store, request: GraphRequest) -> dict[str, object]:
         index.close()
 
 
+def count_draws(index: GraphIndex) -> list[GraphRequest]:
+    """The requests `index` draws from its tables from now on (a kept view is not drawn)."""
+    drawn: list[GraphRequest] = []
+    draw = index._drawn_and_reached
+
+    def counted(connection: object, request: GraphRequest) -> tuple[dict[str, object], frozenset[str] | None]:
+        drawn.append(request)
+        return draw(connection, request)
+
+    index._drawn_and_reached = counted  # type: ignore[method-assign]
+    return drawn
+
+
 def post(url: str, triples: list[str] | None) -> None:
     if triples is None:
         assert httpx.post(f"{url}/ttl/delete_all", json={}).status_code == 200
@@ -236,14 +249,7 @@ def test_a_neighbourhood_is_kept_while_other_robots_post_and_drawn_again_when_a_
     store.apply([q for n in range(50) for robot in ("ari", "bo") for q in activity(robot, n)], 0)
     index = GraphIndex(store, tmp_path / "graph.sqlite3")
     index.build(0)
-    drawn: list[GraphRequest] = []
-    draw = index._drawn_and_reached
-
-    def counted(connection: object, request: GraphRequest) -> tuple[dict[str, object], frozenset[str] | None]:
-        drawn.append(request)
-        return draw(connection, request)
-
-    index._drawn_and_reached = counted  # type: ignore[method-assign]
+    drawn = count_draws(index)
     ari = GraphRequest(focus=f"{EX}robot/ari", depth=1)
 
     def step(quads: list[Quad] | None, through: int) -> int:
@@ -332,14 +338,7 @@ def test_a_neighbourhood_reaching_too_many_nodes_is_drawn_at_every_request(
     store.apply([Quad(NamedNode(f"{EX}activity/{n}"), NamedNode(segb + "wasPerformedBy"), robot) for n in range(30)], 0)
     index = GraphIndex(store, tmp_path / "graph.sqlite3")
     index.build(0)
-    drawn: list[GraphRequest] = []
-    draw = index._drawn_and_reached
-
-    def counted(connection: object, request: GraphRequest) -> tuple[dict[str, object], frozenset[str] | None]:
-        drawn.append(request)
-        return draw(connection, request)
-
-    index._drawn_and_reached = counted  # type: ignore[method-assign]
+    drawn = count_draws(index)
     try:
         for request in (GraphRequest(focus=robot.value, depth=1), GraphRequest(focus=f"{EX}activity/0", depth=0)):
             drawn.clear()
