@@ -17,6 +17,7 @@ import pytest
 from pyoxigraph import Literal, NamedNode, Quad
 
 from segb_server.backend.api.app import create_app
+from segb_server.backend.config import Settings
 from segb_server.backend.services.container import GRAPH_FILE
 from segb_server.backend.services.views import graph_index
 from segb_server.backend.services.views.graph_index import FIRST_VIEW, INDEX_VERSION, GraphIndex, GraphRequest
@@ -109,16 +110,25 @@ def test_the_graph_kept_current_equals_a_fresh_index_after_every_step(server: tu
     assert served(url, REQUESTS[0])["nodes"], "the history left something to draw"
 
 
-def test_a_restart_catches_the_index_up_from_the_journal(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+def served_history(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture, *, seed: int, posts: int
+) -> tuple[OxigraphStore, Settings, History]:
+    """An on-disk store and data directory after a server received `posts` steps of a history and stopped (the
+    views' log lines captured)."""
     store = OxigraphStore("http://amor-segb/events", tmp_path / "oxigraph")
     settings = make_settings(store="oxigraph", data_dir=tmp_path / "data")
-    history = History(3)
+    history = History(seed)
     caplog.set_level(logging.INFO, logger="segb.views")
+    with LiveServer(create_app(settings, store=store)) as live:
+        for _ in range(posts):
+            post(live.url, history.next_post() or [])
+        settle(live.url)
+    return store, settings, history
+
+
+def test_a_restart_catches_the_index_up_from_the_journal(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    store, settings, history = served_history(tmp_path, caplog, seed=3, posts=4)
     try:
-        with LiveServer(create_app(settings, store=store)) as live:
-            for _ in range(4):
-                post(live.url, history.next_post() or [])
-            settle(live.url)
         assert any(record.getMessage().startswith("view graph built") for record in caplog.records)
         behind = tmp_path / "graph-behind.sqlite3"
         shutil.copy(settings.data_dir / GRAPH_FILE, behind)
@@ -146,15 +156,8 @@ def test_an_index_written_with_other_tables_is_built_again_at_start(
     """An index left by a version whose tables differ (here: its state without the first view's counter, and the
     version number of then) is built again from the store, never updated in place (which failed on the missing
     column, and dropped every view)."""
-    store = OxigraphStore("http://amor-segb/events", tmp_path / "oxigraph")
-    settings = make_settings(store="oxigraph", data_dir=tmp_path / "data")
-    history = History(5)
-    caplog.set_level(logging.INFO, logger="segb.views")
+    store, settings, history = served_history(tmp_path, caplog, seed=5, posts=3)
     try:
-        with LiveServer(create_app(settings, store=store)) as live:
-            for _ in range(3):
-                post(live.url, history.next_post() or [])
-            settle(live.url)
         database = sqlite3.connect(settings.data_dir / GRAPH_FILE)
         database.execute("ALTER TABLE graph_state DROP COLUMN first_view")
         database.execute("UPDATE graph_state SET version = ?", (INDEX_VERSION,))
