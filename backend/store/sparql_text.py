@@ -34,7 +34,7 @@ def code_only(text: str) -> str:
     return _LEXEMES.sub(blank, text)
 
 
-@lru_cache(maxsize=256)  # a report's text is bound to new values again and again
+@lru_cache(maxsize=32)  # the catalog's texts, bound to new values again and again; few, so little memory
 def top_level_where(sparql: str) -> int | None:
     """The offset just after the `{` that opens the query's own WHERE group, or None if there is none.
 
