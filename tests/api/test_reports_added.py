@@ -1,9 +1,12 @@
 """A report is added by dropping a `.rq` file in `sparql/reports/`, no Python: with a `# key:` line its rows
 are kept current; with a construct the rows cannot follow (here MINUS) it is evaluated in full, and says so.
-A filter on a parameter through EXISTS is served from the rows with everything its body says, VALUES too."""
+A filter on a parameter through EXISTS is served from the rows with everything its body says, VALUES too. A
+`same-as` preset is served from its base's rows, kept once."""
 
 from __future__ import annotations
 
+import json
+import logging
 import shutil
 from collections.abc import Iterator
 from pathlib import Path
@@ -16,6 +19,7 @@ from segb_server.backend.config import PACKAGE_ROOT
 from tests.conftest import make_settings
 from tests.support.live_server import LiveServer
 from tests.support.settle import settle
+from tests.support.streams import first_event
 
 PREFIXES = """PREFIX rdf: <http://www.w3.org/1999/02/22-rdf-syntax-ns#>
 PREFIX foaf: <http://xmlns.com/foaf/0.1/>
@@ -57,6 +61,12 @@ SELECT ?agent ?name WHERE {{
 ORDER BY ?name ?agent
 """
 
+# The same query with a friend chosen by default: a preset, whose rows are its base's.
+FRIENDS_OF_001 = """# title: Friends of P001
+# same-as: reports/agents-by-friend
+# param friend: iri = https://example.org/p/001 — only agents who know this person
+"""
+
 
 def people(count: int, start: int = 0) -> str:
     lines = [f"<https://example.org/p/{i:03d}> a <http://www.w3.org/ns/prov#Agent> ." for i in range(start, count)]
@@ -69,12 +79,14 @@ def people(count: int, start: int = 0) -> str:
 
 
 @pytest.fixture
-def server(tmp_path: Path) -> Iterator[str]:
+def server(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> Iterator[str]:
+    caplog.set_level(logging.INFO, logger="segb.reports")  # before the views are built
     sparql = tmp_path / "sparql"
     shutil.copytree(PACKAGE_ROOT / "sparql", sparql)
     (sparql / "reports" / "named-agents.rq").write_text(NAMED)
     (sparql / "reports" / "unnamed-agents.rq").write_text(UNNAMED)
     (sparql / "reports" / "agents-by-friend.rq").write_text(BY_FRIEND)
+    (sparql / "reports" / "friends-of-001.rq").write_text(FRIENDS_OF_001)
     with LiveServer(create_app(make_settings(sparql_dir=sparql))) as live:
         yield live.url
 
@@ -131,3 +143,35 @@ def test_a_filter_through_exists_keeps_the_values_its_body_narrows_to(server: st
         ).json()
         assert body["served_from"] == "rows"
         assert [row["name"] for row in body["rows"]] == expected, friend
+
+
+def test_a_preset_is_served_from_its_base_rows_kept_once(server: str, caplog: pytest.LogCaptureFixture) -> None:
+    person, knows = "http://xmlns.com/foaf/0.1/Person", "http://xmlns.com/foaf/0.1/knows"
+    post(server, people(6))
+    post(server, f"<https://example.org/p/000> <{knows}> <https://example.org/p/001> .")
+    post(server, f"<https://example.org/p/001> a <{person}> .")
+    settle(server)
+    preset = httpx.get(f"{server}/reports/friends-of-001", timeout=30).json()
+    assert preset["served_from"] == "rows"
+    assert [row["name"] for row in preset["rows"]] == ["P000"]
+
+    post(server, f"<https://example.org/p/004> <{knows}> <https://example.org/p/001> .")
+    settle(server)
+    names = [row["name"] for row in httpx.get(f"{server}/reports/friends-of-001", timeout=30).json()["rows"]]
+    assert names == ["P000", "P004"]
+    everyone = httpx.get(f"{server}/reports/agents-by-friend", timeout=30).json()
+    assert [row["name"] for row in everyone["rows"]] == ["P000", "P002", "P004"]
+    logged = [*caplog.get_records("setup"), *caplog.records]  # the views are built as the server starts
+    built = [record.getMessage() for record in logged if " built: " in record.getMessage()]
+    assert any("reports/agents-by-friend" in message for message in built), built
+    assert not any("reports/friends-of-001" in message for message in built), built
+
+
+def test_a_preset_stream_tells_the_changes_of_the_rows_it_shares(server: str) -> None:
+    knows = "http://xmlns.com/foaf/0.1/knows"
+    post(server, people(2))
+    post(server, f"<https://example.org/p/000> <{knows}> <https://example.org/p/001> .")
+    settle(server)
+    event = first_event(f"{server}/reports/stream?report=friends-of-001", {"Last-Event-ID": "0"})  # replay all
+    assert event["event"] == "change"
+    assert json.loads(event["data"]) == {"report": "friends-of-001", "units": ["<https://example.org/p/000>"]}

@@ -7,19 +7,7 @@ import httpx
 
 from tests.support.live_server import LiveServer
 from tests.support.scenarios import lobby
-
-
-def first_event(url: str, headers: dict[str, str]) -> dict[str, str]:
-    event: dict[str, str] = {}
-    with httpx.stream("GET", url, headers=headers, timeout=30) as stream:
-        assert stream.status_code == 200
-        for line in stream.iter_lines():
-            if line.startswith(("id:", "event:", "data:")):
-                key, _, value = line.partition(":")
-                event[key] = value.strip()
-            elif not line and "event" in event:
-                return event
-    raise AssertionError("the stream ended")
+from tests.support.streams import first_event
 
 
 def test_an_unknown_report_is_refused_before_the_stream_opens(memory_api: LiveServer) -> None:

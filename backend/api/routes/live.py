@@ -45,6 +45,7 @@ async def stream(
     if maintainer is None:
         raise NotFound("This server keeps no live reports.")
     rows = maintainer.rows
+    served = maintainer.served()
     resume = request.headers.get("last-event-id", "")
     # Where a new reader starts is read before the answer's headers go out: a change made as soon as the
     # reader sees them is after it, and is sent.
@@ -59,7 +60,7 @@ async def stream(
         return [
             f"id: {last}\nevent: change\ndata: "
             f"{json.dumps({'report': name.removeprefix(f'{FOLDER}/'), 'units': sorted(units)})}\n\n".encode()
-            for name, units in _by_report(found, wanted).items()
+            for name, units in _by_report(found, wanted, served).items()
         ]
 
     async def opening() -> list[bytes]:
@@ -130,9 +131,13 @@ def _event_stream(
     return StreamingResponse(events(), media_type="text/event-stream", headers=headers)
 
 
-def _by_report(changes: list[tuple[int, str, str]], wanted: set[str]) -> dict[str, set[str]]:
+def _by_report(
+    changes: list[tuple[int, str, str]], wanted: set[str], served: dict[str, list[str]]
+) -> dict[str, set[str]]:
+    """The changed units of each wanted report; a change of shared rows is a change of every report they serve."""
     grouped: dict[str, set[str]] = {}
-    for _, name, unit in changes:
-        if not wanted or name in wanted:
-            grouped.setdefault(name, set()).add(unit)
+    for _, kept, unit in changes:
+        for name in served.get(kept, [kept]):
+            if not wanted or name in wanted:
+                grouped.setdefault(name, set()).add(unit)
     return grouped

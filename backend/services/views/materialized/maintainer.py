@@ -46,18 +46,36 @@ class ReportMaintainer:
     def __init__(self, store: Store, rows: ReportRows) -> None:
         self.store = store
         self.rows = rows
-        self.reports: dict[str, ReportProjection] = {}
+        self.reports: dict[str, ReportProjection] = {}  # by report name; a preset shares its base's
         self.unsupported: dict[str, str] = {}
+        self._by_source: dict[tuple[str, tuple[tuple[str, str], ...]], ReportProjection] = {}
 
     def add(self, query: CatalogQuery) -> None:
-        """Keep `query` current (or note why it cannot be, once, at start-up)."""
+        """Keep `query` current (or note why it cannot be, once, at start-up). A query with the text and the
+        parameters of one already kept (a `same-as` preset: only its defaults differ, and those are bound at
+        request time) is served from the same rows, kept once."""
+        source = (query.text, tuple(sorted((name, p.type) for name, p in query.parameters.items())))
+        if (kept := self._by_source.get(source)) is not None:
+            self.reports[query.name] = kept
+            return
         try:
             projection = _projection(query, plan_report(query), self.store, self.rows)
         except Unsupported as reason:
             self.unsupported[query.name] = str(reason)
             logger.warning("report %s is evaluated in full on every request: %s", query.name, reason)
             return
-        self.reports[query.name] = projection
+        self.reports[query.name] = self._by_source[source] = projection
+
+    def projections(self) -> list[ReportProjection]:
+        """Every projection once, for the projector (presets share theirs)."""
+        return list(self._by_source.values())
+
+    def served(self) -> dict[str, list[str]]:
+        """Each projection's name → the reports its rows serve: its own, and the presets sharing them."""
+        served: dict[str, list[str]] = {}
+        for name, projection in self.reports.items():
+            served.setdefault(projection.name, []).append(name)
+        return served
 
     def page(self, name: str, bound: dict[str, Term | None], limit: int, offset: int, after: str | None) -> Page | None:
         """A page served from the rows, or None while the report is not (or cannot be) kept as rows."""
