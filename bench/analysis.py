@@ -177,8 +177,10 @@ LIVE_INTRO = [
     "store. The server then builds the reports' rows and the graph index in the background (until they are",
     "built, reports are answered by their queries and `/graph` by a 503); the measurements start once every",
     "view is built (*every view built s*). While the pages are measured, one more robot publishes its events at 10",
-    "posts/s, and a second client polls `/reports/conversations?robot=…&since=…` after each post that adds",
-    "messages until they are rows (every 20 ms; a check that falls behind is skipped, not timed late). Filters",
+    "posts/s, and a second client follows the conversations report as a live `/reports` page does: when",
+    "the report's live stream (`/reports/stream`) names a post's messages, it reads",
+    "`/reports/conversations?robot=…&since=…` (again every 20 ms until they are rows; a check that falls behind",
+    "is skipped, not timed late). The time is from the post's 201 to that page holding its messages. Filters",
     "come from the data: the first participant pair, and a one-day window from the first message's time.",
     "Each row of the pages table is the same request repeated; default page size 1,000 rows.",
 ]

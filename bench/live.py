@@ -4,6 +4,7 @@ show in its report, and how long the reports' rows took to build when the server
 
 from __future__ import annotations
 
+import json
 import queue
 import re
 import threading
@@ -255,17 +256,60 @@ def publishing(url: str, posts: list[LivePost], rate: float, into: Background) -
     stop = threading.Event()
     pending: queue.Queue[tuple[LivePost, float] | None] = queue.Queue()
     robot = robot_of(posts[0].payload)
-    poster = threading.Thread(target=_post, args=(url, posts, rate, stop, pending, into), daemon=True)
-    checker = threading.Thread(target=_check, args=(url, robot, pending, into), daemon=True)
-    poster.start()
-    checker.start()
-    try:
-        yield
-    finally:
-        stop.set()
-        poster.join()
-        pending.put(None)
-        checker.join()
+    with ReportStream(url, "conversations") as heard:
+        poster = threading.Thread(target=_post, args=(url, posts, rate, stop, pending, into), daemon=True)
+        checker = threading.Thread(target=_check, args=(url, robot, pending, heard, into), daemon=True)
+        poster.start()
+        checker.start()
+        try:
+            yield
+        finally:
+            stop.set()
+            poster.join()
+            pending.put(None)
+            checker.join()
+
+
+class ReportStream:
+    """`with ReportStream(url, report) as heard:` the units the report's live stream names, each with when it was
+    first heard of (the server's `/reports/stream`, as the `/reports` page follows it)."""
+
+    def __init__(self, url: str, report: str) -> None:
+        self._client = httpx.Client(base_url=url, timeout=httpx.Timeout(60, read=None))
+        self._report = report
+        self._heard: dict[str, float] = {}
+        self._news = threading.Condition()
+        self._open = threading.Event()
+        self._reader = threading.Thread(target=self._read, daemon=True)
+
+    def __enter__(self) -> ReportStream:
+        self._reader.start()
+        if not self._open.wait(GIVE_UP_SECONDS):
+            raise BenchError("the reports' live stream did not open")
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._client.close()  # ends the reader's read
+
+    def _read(self) -> None:
+        try:
+            with self._client.stream("GET", "/reports/stream", params={"report": self._report}) as stream:
+                for line in stream.iter_lines():
+                    if line.startswith("retry:"):  # sent once the stream's starting point is set
+                        self._open.set()
+                    elif line.startswith("data:"):
+                        units = json.loads(line.removeprefix("data:"))["units"]
+                        with self._news:
+                            for unit in units:
+                                self._heard.setdefault(unit, time.perf_counter())
+                            self._news.notify_all()
+        except (httpx.HTTPError, RuntimeError):  # closed at the end
+            return
+
+    def wait_for(self, units: set[str], timeout: float) -> bool:
+        """Whether every one of `units` was heard of within `timeout` seconds."""
+        with self._news:
+            return self._news.wait_for(lambda: units <= self._heard.keys(), timeout)
 
 
 def _post(
@@ -295,15 +339,19 @@ def _post(
         into.seconds = time.perf_counter() - started
 
 
-def _check(url: str, robot: str, pending: queue.Queue[tuple[LivePost, float] | None], into: Background) -> None:
-    """Each message post in turn: poll its robot's conversations since its time until its messages are rows.
-    Checks that fall behind are skipped rather than timed late, so no figure includes time spent queued."""
+def _check(
+    url: str, robot: str, pending: queue.Queue[tuple[LivePost, float] | None], heard: ReportStream, into: Background
+) -> None:
+    """Each message post in turn, as a live `/reports` page sees it: once the report's stream names its messages,
+    read its robot's conversations since its time (again, until its messages are rows). Checks that fall behind
+    are skipped rather than timed late, so no figure includes time spent queued."""
     with httpx.Client(base_url=url, timeout=60) as client:
         while (item := pending.get()) is not None:
             post, answered = item
             if not pending.empty():
                 continue  # a later post is waiting: time that one instead
-            seen = _poll(client, robot, post, answered)
+            told = heard.wait_for({f"<{message}>" for message in post.messages}, GIVE_UP_SECONDS)
+            seen = _poll(client, robot, post, answered) if told else None
             if seen is None:
                 into.not_visible += 1
             else:

@@ -11,6 +11,7 @@ import sqlite3
 import threading
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import httpx
 import pytest
@@ -72,6 +73,19 @@ def count_draws(index: GraphIndex) -> list[GraphRequest]:
         return draw(connection, request)
 
     index._drawn_and_reached = counted  # type: ignore[method-assign]
+    return drawn
+
+
+def count_view_draws(index: GraphIndex) -> list[GraphRequest]:
+    """The views `index` draws from its tables from now on, the first view among them (a kept one is not drawn)."""
+    drawn: list[GraphRequest] = []
+    draw = index._view
+
+    def counted(connection: Any, request: GraphRequest) -> dict[str, object]:
+        drawn.append(request)
+        return draw(connection, request)
+
+    index._view = counted  # type: ignore[method-assign]
     return drawn
 
 
@@ -229,6 +243,34 @@ def test_the_first_view_is_kept_while_posts_land_after_it_and_drawn_again_when_o
     step(named(10), 5)  # a drawn node's label
     assert generation() != kept
     index.close()
+    store.close()
+
+
+def test_a_watched_first_view_is_drawn_again_by_the_keeper_and_an_unwatched_one_by_nobody(tmp_path: Path) -> None:
+    """A step that changes the first view draws it at once while a viewer asked for it lately (their next request
+    finds it drawn); nobody asking, the step draws nothing."""
+    prov = "http://www.w3.org/ns/prov#"
+
+    def activity(number: int) -> list[Quad]:
+        node = NamedNode(f"{EX}activity/{number}")
+        time = Literal(f"2026-03-10T00:00:{number:02d}Z", datatype=NamedNode(XSD_DATETIME))
+        return [Quad(node, NamedNode(prov + "startedAtTime"), time)]
+
+    store = OxigraphStore("http://amor-segb/events")
+    for watched in (False, True):
+        index = GraphIndex(store, tmp_path / f"graph-{watched}.sqlite3")
+        index.build(0)
+        if watched:
+            index.view(FIRST_VIEW)
+        draws = count_view_draws(index)
+        for number in range(10 * watched, 10 * watched + 3):  # each new activity enters the small first view
+            store.apply(activity(number), number + 1)
+            index.update(activity(number), number + 1)
+        assert len(draws) == (3 if watched else 0), watched
+        if watched:
+            assert index.view(FIRST_VIEW) == fresh(store, FIRST_VIEW)
+            assert len(draws) == 3  # the request found it drawn
+        index.close()
     store.close()
 
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 from functools import lru_cache
 from pathlib import Path
-from time import time_ns
+from time import monotonic, time_ns
 from typing import Any
 
 from pyoxigraph import Literal, NamedNode, Quad
@@ -53,6 +53,9 @@ DRAWN_LITERALS = frozenset([*LABELS, TEXT, DESCRIPTION, *TIMES, INTENSITY])
 MAX_LABEL = 60
 UNTIMED = "~"  # sorts after every instant
 CHUNK = 400  # IRIs per IN (…) list
+# While the first view was asked for this recently, the keeper draws it again as soon as a step changes it: the
+# viewer's next request (live viewers fetch on every change) finds it drawn. Nobody watching, nothing is drawn.
+FIRST_VIEW_WATCHED_SECONDS = 120.0
 
 TABLES = (
     "graph_state",
@@ -129,6 +132,7 @@ class GraphIndex:
         # moves. Kept in memory by the process that keeps the index, read by `follow` in the others.
         self.changed_through = 0
         self._first_view: tuple[int, dict[str, object]] | None = None  # (graph_state.first_view, the view)
+        self._first_view_asked = -FIRST_VIEW_WATCHED_SECONDS  # monotonic time of the last request for it
         self._neighbourhoods = KeptNeighbourhoods()
 
     # --- Projection ----------------------------------------------------------------------------------
@@ -162,6 +166,7 @@ class GraphIndex:
         logger.info("graph index built: %d nodes", len(iris))
 
     def update(self, quads: list[Quad], through: int) -> None:
+        redraw = False
         with self.db.writing() as connection:
             cutoff = _first_view_cutoff(connection)
             before = _node_rows(connection, _subjects_and_targets(quads))
@@ -170,10 +175,13 @@ class GraphIndex:
                 derived = sorted(touched | _borrowers(connection, touched))
                 before |= _node_rows(connection, [iri for iri in derived if iri not in before])
                 _derive(connection, derived)
-                if _first_view_changed(cutoff, before, _node_rows(connection, derived), links):
+                redraw = _first_view_changed(cutoff, before, _node_rows(connection, derived), links)
+                if redraw:
                     connection.execute("UPDATE graph_state SET first_view = first_view + 1")
                 _record_changes(connection, derived, through)
             _set_through(connection, through, changed=bool(touched))
+        if redraw and monotonic() - self._first_view_asked < FIRST_VIEW_WATCHED_SECONDS:
+            self._kept_first_view(self.db.reader())  # before live viewers hear of the change
         if touched:
             self.changed_through = through
 
@@ -199,13 +207,18 @@ class GraphIndex:
             return self._neighbourhoods.view(connection, request, lambda: self._drawn_and_reached(connection, request))
         if request != FIRST_VIEW:
             return self._view(connection, request)
+        self._first_view_asked = monotonic()
+        return self._kept_first_view(connection)
+
+    def _kept_first_view(self, connection: Any) -> dict[str, object]:
+        """The first view, drawn again only when its generation moved since it was kept."""
         state = connection.execute("SELECT first_view, nodes FROM graph_state").fetchone()
         if state is None:
-            return self._view(connection, request)
+            return self._view(connection, FIRST_VIEW)
         generation, total = state  # read before the view: a view kept is never older than its generation
         kept = self._first_view
         if kept is None or kept[0] != generation:
-            kept = self._first_view = (generation, self._view(connection, request))
+            kept = self._first_view = (generation, self._view(connection, FIRST_VIEW))
         view = kept[1]
         return {**view, "total_nodes": total if view["truncated"] else view["total_nodes"]}
 
