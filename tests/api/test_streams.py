@@ -1,12 +1,19 @@
 """The event streams' inputs: an unknown report is refused up front, and a resume position the server does not
-know (garbage, or from before a restart) never fails the stream."""
+know (garbage, or from before a restart) never fails the stream. A change wakes the streams of the process that
+made it at once, without waiting for their next look."""
 
 from __future__ import annotations
 
-import httpx
+import threading
+import time
 
+import httpx
+import pytest
+
+from segb_server.backend.api.routes import live
 from tests.support.live_server import LiveServer
 from tests.support.scenarios import lobby
+from tests.support.settle import settle
 from tests.support.streams import first_event
 
 
@@ -30,3 +37,28 @@ def test_a_report_stream_with_a_garbage_position_starts_from_now(memory_api: Liv
     ) as stream:
         assert stream.status_code == 200
         assert next(stream.iter_lines()) == "retry: 2000"  # no reset, no replay: nothing to resume from
+
+
+def test_a_post_wakes_both_streams_without_polling(memory_api: LiveServer, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Polling stretched past the readers' patience (30 s): the posts still reach them, woken by the views."""
+    monkeypatch.setattr(live, "POLL_SECONDS", 600.0)
+    settle(memory_api.url)  # the views are built (empty)
+    heard: dict[str, dict[str, str] | BaseException] = {}
+
+    def listen(path: str) -> None:
+        try:
+            heard[path] = first_event(f"{memory_api.url}{path}", {})
+        except BaseException as error:
+            heard[path] = error
+
+    readers = [threading.Thread(target=listen, args=(path,)) for path in ("/reports/stream", "/graph/stream")]
+    for reader in readers:
+        reader.start()
+    time.sleep(1)  # both are waiting
+    lobby().publish_all(memory_api.url)
+    for reader in readers:
+        reader.join(timeout=60)
+    assert {path: type(event).__name__ for path, event in heard.items()} == {
+        "/reports/stream": "dict",
+        "/graph/stream": "dict",
+    }, heard

@@ -8,6 +8,7 @@ that the drawable graph changed; a viewer fetches its view again, so a reconnect
 from __future__ import annotations
 
 import json
+import time
 from collections.abc import AsyncIterator, Awaitable, Callable
 
 import anyio
@@ -17,10 +18,11 @@ from fastapi.responses import StreamingResponse
 from segb_server.backend.api.deps import Auditor, ServicesDep
 from segb_server.backend.services.errors import NotFound
 from segb_server.backend.services.views.reports import FOLDER
+from segb_server.backend.services.views.signal import ChangeSignal
 
 router = APIRouter(tags=["reports"])
 
-POLL_SECONDS = 0.1  # how soon a reader hears of a change: a cheap indexed read per open stream
+POLL_SECONDS = 0.1  # how soon a reader hears of another process's change: a cheap read per open stream
 KEEP_ALIVE_SECONDS = 15.0
 
 
@@ -69,7 +71,7 @@ async def stream(
         oldest = await anyio.to_thread.run_sync(rows.oldest_change)
         return [b"event: reset\ndata: {}\n\n"] if last < oldest - 1 else []
 
-    return _event_stream(request, opening, changes)
+    return _event_stream(request, opening, changes, rows.changed)
 
 
 @router.get(
@@ -101,31 +103,34 @@ async def graph_stream(request: Request, services: ServicesDep, principal: Audit
     async def opening() -> list[bytes]:
         return []
 
-    return _event_stream(request, opening, changes)
+    return _event_stream(request, opening, changes, index.changed)
 
 
 def _event_stream(
-    request: Request, opening: Callable[[], Awaitable[list[bytes]]], changes: Callable[[], Awaitable[list[bytes]]]
+    request: Request,
+    opening: Callable[[], Awaitable[list[bytes]]],
+    changes: Callable[[], Awaitable[list[bytes]]],
+    changed: ChangeSignal,
 ) -> StreamingResponse:
-    """An event stream: `opening`'s events, then `changes`' events polled until the reader leaves, with a
-    keep-alive comment when quiet."""
+    """An event stream: `opening`'s events, then `changes`' events, looked for whenever `changed` wakes the
+    reader (or every `POLL_SECONDS`) until the reader leaves, with a keep-alive comment when quiet."""
 
     async def events() -> AsyncIterator[bytes]:
         for event in await opening():
             yield event
         yield b"retry: 2000\n\n"
-        quiet = 0.0
+        quiet_since = time.monotonic()
         while not await request.is_disconnected():
             found = await changes()
             for event in found:
                 yield event
+            now = time.monotonic()
             if found:
-                quiet = 0.0
-            elif quiet >= KEEP_ALIVE_SECONDS:
+                quiet_since = now
+            elif now - quiet_since >= KEEP_ALIVE_SECONDS:
                 yield b": keep-alive\n\n"
-                quiet = 0.0
-            await anyio.sleep(POLL_SECONDS)
-            quiet += POLL_SECONDS
+                quiet_since = now
+            await changed.wait(POLL_SECONDS)
 
     headers = {"Cache-Control": "no-store", "X-Accel-Buffering": "no"}  # proxies must not buffer the stream
     return StreamingResponse(events(), media_type="text/event-stream", headers=headers)

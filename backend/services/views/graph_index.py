@@ -26,6 +26,7 @@ from pyoxigraph import Literal, NamedNode, Quad
 
 from segb_server.backend.services.views.database import ViewDatabase
 from segb_server.backend.services.views.neighbourhoods import MAX_KEPT_REACH, KeptNeighbourhoods
+from segb_server.backend.services.views.signal import ChangeSignal
 from segb_server.backend.services.views.term_values import iso_time
 from segb_server.backend.store.base import Store, Term
 from segb_server.backend.vocabulary import KINDS, PREFIXES, Kind, compact, kind_of
@@ -131,6 +132,7 @@ class GraphIndex:
         # The journal entry of the last change to what is drawn: live viewers fetch their view again when it
         # moves. Kept in memory by the process that keeps the index, read by `follow` in the others.
         self.changed_through = 0
+        self.changed = ChangeSignal()  # wakes this process's live viewers when `changed_through` moves
         self._first_view: tuple[int, dict[str, object]] | None = None  # (graph_state.first_view, the view)
         self._first_view_asked = -FIRST_VIEW_WATCHED_SECONDS  # monotonic time of the last request for it
         self._neighbourhoods = KeptNeighbourhoods()
@@ -163,6 +165,7 @@ class GraphIndex:
             iris = [row[0] for row in connection.execute("SELECT iri FROM graph_nodes")]
             _derive(connection, iris)
         self.changed_through = through
+        self.changed.notify()
         logger.info("graph index built: %d nodes", len(iris))
 
     def update(self, quads: list[Quad], through: int) -> None:
@@ -184,6 +187,7 @@ class GraphIndex:
             self._kept_first_view(self.db.reader())  # before live viewers hear of the change
         if touched:
             self.changed_through = through
+            self.changed.notify()
 
     def clear(self, through: int) -> None:
         with self.db.writing() as connection:
@@ -193,6 +197,7 @@ class GraphIndex:
             _new_first_view(connection)
             connection.execute("UPDATE graph_state SET changes_from = ?", (through,))
         self.changed_through = through
+        self.changed.notify()
 
     def close(self) -> None:
         self.db.close()

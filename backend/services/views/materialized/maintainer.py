@@ -150,6 +150,8 @@ class ReportProjection:
             if quads:
                 self.rows.prune_changes(CHANGES_KEPT)
             self.rows.set_state(self.name, self.fingerprint, through)
+        if replaced:
+            self.rows.changed.notify()
 
     # --- queries -------------------------------------------------------------------------------------
 

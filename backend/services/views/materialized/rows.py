@@ -26,6 +26,7 @@ from segb_server.backend.services.sparql.catalog import Parameter
 from segb_server.backend.services.views.database import ViewDatabase
 from segb_server.backend.services.views.materialized.encoding import filter_value, sort_key
 from segb_server.backend.services.views.materialized.plan import ReportPlan
+from segb_server.backend.services.views.signal import ChangeSignal
 from segb_server.backend.services.views.term_values import JsonValue, iso_time, json_value
 from segb_server.backend.store.base import Term
 from segb_server.backend.store.terms import term_text
@@ -120,6 +121,7 @@ class ReportRows:
     """Every materialised report's rows in one SQLite database (a file in the data directory, or temporary)."""
 
     def __init__(self, path: Path | None) -> None:
+        self.changed = ChangeSignal()  # wakes this process's live readers once new changes are committed
         self.db = ViewDatabase(
             path,
             [
