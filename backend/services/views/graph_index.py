@@ -164,6 +164,7 @@ class GraphIndex:
                 _store_facts(connection, batch, self.kept_literals)
             iris = [row[0] for row in connection.execute("SELECT iri FROM graph_nodes")]
             _derive(connection, iris)
+        self._kept_first_view(self.db.reader())  # for the first visitor, who would otherwise wait for it
         self.changed_through = through
         self.changed.notify()
         logger.info("graph index built: %d nodes", len(iris))
