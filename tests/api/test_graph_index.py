@@ -18,10 +18,18 @@ import pytest
 from pyoxigraph import Literal, NamedNode, Quad
 
 from segb_server.backend.api.app import create_app
-from segb_server.backend.config import Settings
+from segb_server.backend.config import PACKAGE_ROOT, Settings
 from segb_server.backend.services.container import GRAPH_FILE
+from segb_server.backend.services.sparql.catalog import Catalog
 from segb_server.backend.services.views import graph_index
-from segb_server.backend.services.views.graph_index import FIRST_VIEW, INDEX_VERSION, GraphIndex, GraphRequest
+from segb_server.backend.services.views.graph import GraphService
+from segb_server.backend.services.views.graph_index import (
+    FIRST_VIEW,
+    INDEX_VERSION,
+    RDF_TYPE,
+    GraphIndex,
+    GraphRequest,
+)
 from segb_server.backend.store.base import Store
 from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.conftest import STORE_KINDS, make_settings, virtuoso_store
@@ -273,6 +281,40 @@ def test_a_watched_first_view_is_drawn_again_by_the_keeper_and_an_unwatched_one_
             assert index.view(FIRST_VIEW) == fresh(store, FIRST_VIEW)
             assert len(draws) == 4  # the request found it drawn
         index.close()
+    store.close()
+
+
+def test_a_request_while_the_keeper_draws_the_first_view_gets_the_one_before_and_its_through(tmp_path: Path) -> None:
+    """While the keeper draws a changed first view, a request does not draw it too: it gets the view before, with
+    the `through` that view includes; once the keeper is done, the new one and its `through`."""
+    store = OxigraphStore("http://amor-segb/events")
+    index = GraphIndex(store, tmp_path / "graph.sqlite3")
+    graph = GraphService(Catalog(PACKAGE_ROOT / "sparql"), store, index, wait_ready=lambda _timeout: True)
+    index.build(0)
+    index.ready = True
+    before = graph.graph(FIRST_VIEW)
+    started, release = threading.Event(), threading.Event()
+    draw = index._view
+
+    def slow_for_the_keeper(connection: Any, request: GraphRequest) -> dict[str, object]:
+        if threading.current_thread().name == "keeper":
+            started.set()
+            release.wait(30)
+        return draw(connection, request)
+
+    index._view = slow_for_the_keeper  # type: ignore[method-assign]
+    robot = [Quad(NamedNode(f"{EX}robot/ari"), NamedNode(RDF_TYPE), NamedNode("http://kb.openrobots.org#Robot"))]
+    store.apply(robot, 1)
+    keeper = threading.Thread(target=index.update, args=(robot, 1), name="keeper")
+    keeper.start()
+    assert started.wait(30)
+    assert graph.graph(FIRST_VIEW) == before
+    release.set()
+    keeper.join(30)
+    after = graph.graph(FIRST_VIEW)
+    assert after["through"] == 1 and after["nodes"] != before["nodes"]
+    assert {key: value for key, value in after.items() if key != "through"} == fresh(store, FIRST_VIEW)
+    index.close()
     store.close()
 
 

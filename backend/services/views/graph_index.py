@@ -135,6 +135,7 @@ class GraphIndex:
         self.changed = ChangeSignal()  # wakes this process's live viewers when `changed_through` moves
         self._first_view: tuple[int, dict[str, object]] | None = None  # (graph_state.first_view, the view)
         self._first_view_asked = -FIRST_VIEW_WATCHED_SECONDS  # monotonic time of the last request for it
+        self._drawing_first_view = False  # the keeper is drawing a changed first view
         self._neighbourhoods = KeptNeighbourhoods()
 
     # --- Projection ----------------------------------------------------------------------------------
@@ -170,7 +171,6 @@ class GraphIndex:
         logger.info("graph index built: %d nodes", len(iris))
 
     def update(self, quads: list[Quad], through: int) -> None:
-        redraw = False
         with self.db.writing() as connection:
             cutoff = _first_view_cutoff(connection)
             before = _node_rows(connection, _subjects_and_targets(quads))
@@ -179,13 +179,17 @@ class GraphIndex:
                 derived = sorted(touched | _borrowers(connection, touched))
                 before |= _node_rows(connection, [iri for iri in derived if iri not in before])
                 _derive(connection, derived)
-                redraw = _first_view_changed(cutoff, before, _node_rows(connection, derived), links)
-                if redraw:
+                if _first_view_changed(cutoff, before, _node_rows(connection, derived), links):
                     connection.execute("UPDATE graph_state SET first_view = first_view + 1")
+                    # Set before the new generation is committed: a request meanwhile gets the view before.
+                    self._drawing_first_view = monotonic() - self._first_view_asked < FIRST_VIEW_WATCHED_SECONDS
                 _record_changes(connection, derived, through)
             _set_through(connection, through, changed=bool(touched))
-        if redraw and monotonic() - self._first_view_asked < FIRST_VIEW_WATCHED_SECONDS:
-            self._kept_first_view(self.db.reader())  # before live viewers hear of the change
+        if self._drawing_first_view:
+            try:
+                self._kept_first_view(self.db.reader(), keeper=True)  # before live viewers hear of the change
+            finally:
+                self._drawing_first_view = False
         if touched:
             self.changed_through = through
             self.changed.notify()
@@ -216,15 +220,19 @@ class GraphIndex:
         self._first_view_asked = monotonic()
         return self._kept_first_view(connection)
 
-    def _kept_first_view(self, connection: Any) -> dict[str, object]:
-        """The first view, drawn again only when its generation moved since it was kept."""
+    def _kept_first_view(self, connection: Any, *, keeper: bool = False) -> dict[str, object]:
+        """The first view, drawn again only when its generation moved since it was kept. While the keeper draws
+        the next one, a request gets the one before: its `through` (`changed_through`, which moves once the
+        keeper is done) still says what that view includes."""
         state = connection.execute("SELECT first_view, nodes FROM graph_state").fetchone()
         if state is None:
             return self._view(connection, FIRST_VIEW)
         generation, total = state  # read before the view: a view kept is never older than its generation
         kept = self._first_view
-        if kept is None or kept[0] != generation:
+        stale = kept is None or kept[0] != generation
+        if stale and (keeper or kept is None or not self._drawing_first_view):
             kept = self._first_view = (generation, self._view(connection, FIRST_VIEW))
+        assert kept is not None
         view = kept[1]
         return {**view, "total_nodes": total if view["truncated"] else view["total_nodes"]}
 
