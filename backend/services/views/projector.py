@@ -46,6 +46,10 @@ BATCH_STEPS = 200  # applied steps handled together: one update per view for a b
 # than MAX_REST_SECONDS: after a slow batch a long rest would let the next one grow, and the views fall behind.
 REST_RATIO = 1.0
 MAX_REST_SECONDS = 0.25
+# Nor does a rest keep a step waiting longer than this since it was applied: a post's rows are due in its
+# reports within a second of its answer, and a slow batch (a large store, busy cores) already takes a share
+# of that. The rest is then cut short, and only while batches are that slow.
+START_WITHIN_SECONDS = 0.4
 FOLLOW_SECONDS = 0.25  # how often a following process reads how far the leader's views are
 
 
@@ -77,6 +81,14 @@ class _Marker:
     done: threading.Event
 
 
+@dataclass(frozen=True)
+class _Waiting:
+    """A step or a marker in the queue, with when it was queued (`time.monotonic()`)."""
+
+    item: Applied | _Marker
+    since: float
+
+
 class Projector:
     def __init__(
         self,
@@ -93,7 +105,7 @@ class Projector:
         self.projections = projections
         self.leadership = leadership or Leadership(None)
         self._applier = applier if applier is not None and applier.leadership is not self.leadership else None
-        self._queue: queue.Queue[Applied | _Marker | None] = queue.Queue()
+        self._queue: queue.Queue[_Waiting | None] = queue.Queue()
         self._thread: threading.Thread | None = None
         self._stopping = threading.Event()  # ends retry waits too: a store that never returns must not hold shutdown
         self._progress = threading.Condition()
@@ -115,12 +127,12 @@ class Projector:
 
     def on_applied(self, step: Applied) -> None:
         """The applier's listener: called in the applier's thread, so it only queues."""
-        self._queue.put(step)
+        self._queue.put(_Waiting(step, time.monotonic()))
 
     def wait_until_current(self, timeout: float) -> bool:
         """Wait until every step applied so far is in the views."""
         done = threading.Event()
-        self._queue.put(_Marker(done))
+        self._queue.put(_Waiting(_Marker(done), time.monotonic()))
         return done.wait(timeout)
 
     def wait_for(self, sequence: int, timeout: float) -> bool:
@@ -171,9 +183,10 @@ class Projector:
                 logger.warning("building the views failed (%s); retrying", error)
                 if self._stopping.wait(2):
                     return
+        rested = 0.0  # when the rest after the last batch ends (time.monotonic())
         while True:
-            steps = self._next_steps()
-            if any(step is None for step in steps):
+            steps = self._next_steps(rested)
+            if steps is None:
                 return
             applied = [step for step in steps if isinstance(step, Applied)]
             began = time.monotonic()
@@ -182,20 +195,26 @@ class Projector:
             for marker in steps:
                 if isinstance(marker, _Marker):
                     marker.done.set()
-            if applied and self._stopping.wait(min(MAX_REST_SECONDS, REST_RATIO * (time.monotonic() - began))):
-                return
+            ended = time.monotonic()
+            rested = ended + min(MAX_REST_SECONDS, REST_RATIO * (ended - began)) if applied else 0.0
 
-    def _next_steps(self) -> list[Applied | _Marker | None]:
-        """What to do next: what the applier queued, or (where another process applies) what the journal holds
-        up to the store's cursor."""
+    def _next_steps(self, rested: float) -> list[Applied | _Marker] | None:
+        """What to do next, once the rest ending at `rested` is over (or the first step waiting has waited
+        START_WITHIN_SECONDS): what the applier queued, or (where another process applies) what the journal
+        holds up to the store's cursor. None when stopping."""
         try:
-            steps: list[Applied | _Marker | None] = [
-                self._queue.get(timeout=None if self._applier is None else FOLLOW_SECONDS)
-            ]
+            first = self._queue.get(timeout=None if self._applier is None else FOLLOW_SECONDS)
         except queue.Empty:
             return list(self._pulled())
+        if first is None:
+            return None
+        if self._stopping.wait(max(0.0, min(rested, first.since + START_WITHIN_SECONDS) - time.monotonic())):
+            return None
+        steps = [first.item]
         while not self._queue.empty() and len(steps) < BATCH_STEPS:
-            steps.append(self._queue.get())
+            if (waiting := self._queue.get()) is None:
+                return None
+            steps.append(waiting.item)
         return steps
 
     def _pulled(self) -> list[Applied]:
@@ -260,7 +279,13 @@ class Projector:
             if stored is None:
                 self._build(projection, current)
             else:
-                self._catch_up(projection, stored, current)
+                try:
+                    self._catch_up(projection, stored, current)
+                except OUTAGES:
+                    raise
+                except Exception:  # as in `_process_retrying`: the thread must live on, and the view be current
+                    logger.exception("catching view %s up failed; building it again", projection.name)
+                    self._build(projection, current)
             projection.ready = True
         self._advance(current)
 
