@@ -22,25 +22,30 @@ from segb_server.backend.store.oxigraph import OxigraphStore
 BATCH_SECONDS = 0.5  # longer than a step may wait, and than the longest rest
 
 
-class SlowView:
-    """A view whose every update takes BATCH_SECONDS; it records when each update began and ended."""
+class RecordingView:
+    """A view that records its updates (through, began, ended) and builds; each update takes `seconds`, or fails
+    with a bug (`failing`) rather than an outage."""
 
-    name = "slow"
-
-    def __init__(self) -> None:
+    def __init__(self, name: str, seconds: float = 0.0, failing: bool = False) -> None:
+        self.name = name
+        self.seconds = seconds
+        self.failing = failing
         self.ready = False
-        self.updates: list[tuple[int, float, float]] = []  # (through, began, ended)
+        self.updates: list[tuple[int, float, float]] = []
+        self.built: list[int] = []
         self.updated = threading.Condition()
 
     def stored_through(self) -> int | None:
         return 0
 
     def build(self, through: int) -> None:
-        pass
+        self.built.append(through)
 
     def update(self, quads: list, through: int) -> None:  # type: ignore[type-arg]
+        if self.failing:
+            raise RuntimeError("a view's bug")
         began = time.monotonic()
-        time.sleep(BATCH_SECONDS)
+        time.sleep(self.seconds)
         with self.updated:
             self.updates.append((through, began, time.monotonic()))
             self.updated.notify_all()
@@ -62,7 +67,7 @@ def step(sequence: int) -> Applied:
 
 def test_a_rest_is_cut_short_for_a_step_that_waited_through_a_slow_batch_and_kept_otherwise(tmp_path: Path) -> None:
     assert BATCH_SECONDS > START_WITHIN_SECONDS and BATCH_SECONDS > MAX_REST_SECONDS
-    view = SlowView()
+    view = RecordingView("slow", seconds=BATCH_SECONDS)
     projector = Projector(OxigraphStore("urn:x:graph"), Journal(SqliteDatabase(tmp_path / "journal.sqlite3")), [view])
     projector.start()
     try:
@@ -84,42 +89,15 @@ def test_a_rest_is_cut_short_for_a_step_that_waited_through_a_slow_batch_and_kep
         projector.stop()
 
 
-class BrokenCatchUp(SlowView):
-    """A stored view whose catch-up fails with a bug rather than an outage."""
-
-    name = "broken"
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.built: list[int] = []
-
-    def update(self, quads: list, through: int) -> None:  # type: ignore[type-arg]
-        raise RuntimeError("a view's bug")
-
-    def build(self, through: int) -> None:
-        self.built.append(through)
-
-
 def test_a_view_whose_catch_up_fails_is_built_again_and_the_others_are_kept(tmp_path: Path) -> None:
     store = OxigraphStore("urn:x:graph")
     store.apply([Quad(NamedNode("urn:x:s"), NamedNode("urn:x:p"), NamedNode("urn:x:o"), DefaultGraph())], through=3)
-    broken, kept = BrokenCatchUp(), KeptView()
+    broken, kept = RecordingView("broken", failing=True), RecordingView("kept")
     projector = Projector(store, Journal(SqliteDatabase(tmp_path / "journal.sqlite3")), [broken, kept])
     projector.start()
     try:
         assert projector.wait_for(3, timeout=5)  # the views' thread lives on, and every view is ready
         assert broken.built == [3]
-        assert kept.caught_up == [3]
+        assert [through for through, _, _ in kept.updates] == [3] and kept.built == []
     finally:
         projector.stop()
-
-
-class KeptView(BrokenCatchUp):
-    name = "kept"
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.caught_up: list[int] = []
-
-    def update(self, quads: list, through: int) -> None:  # type: ignore[type-arg]
-        self.caught_up.append(through)
