@@ -20,6 +20,7 @@ from pyoxigraph import Literal, NamedNode, Quad
 from segb_server.backend.api.app import create_app
 from segb_server.backend.config import PACKAGE_ROOT, Settings
 from segb_server.backend.services.container import GRAPH_FILE
+from segb_server.backend.services.ingest.journal import Journal
 from segb_server.backend.services.sparql.catalog import Catalog
 from segb_server.backend.services.views import graph_index
 from segb_server.backend.services.views.graph import GraphService
@@ -30,6 +31,8 @@ from segb_server.backend.services.views.graph_index import (
     GraphIndex,
     GraphRequest,
 )
+from segb_server.backend.services.views.projector import Projector
+from segb_server.backend.state.sqlite import SqliteDatabase
 from segb_server.backend.store.base import Store
 from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.conftest import STORE_KINDS, make_settings, virtuoso_store
@@ -169,6 +172,30 @@ def test_a_restart_catches_the_index_up_from_the_journal(tmp_path: Path, caplog:
         built = [record.getMessage() for record in caplog.records if record.getMessage().startswith("view graph built")]
         assert built == []  # caught up from the journal, not built again from the store
     finally:
+        store.close()
+
+
+def test_an_index_kept_from_before_a_restart_draws_its_first_view_before_the_first_request(tmp_path: Path) -> None:
+    """At a restart the stored index is current (nothing to build or catch up): its first view is drawn as the
+    views get ready, as at a build, so the first visitor does not wait for it."""
+    store = OxigraphStore("http://amor-segb/events")
+    activity = NamedNode(f"{EX}activity/1")
+    store.apply([Quad(activity, NamedNode("http://www.w3.org/2000/01/rdf-schema#label"), Literal("greeting"))], 1)
+    before = GraphIndex(store, tmp_path / "graph.sqlite3")
+    before.build(1)
+    before.close()
+    restarted = GraphIndex(store, tmp_path / "graph.sqlite3")
+    draws = count_view_draws(restarted)
+    projector = Projector(store, Journal(SqliteDatabase(tmp_path / "journal.sqlite3")), [restarted])
+    projector.start()
+    try:
+        assert projector.wait_for(1, timeout=10)
+        assert draws == [FIRST_VIEW]
+        assert restarted.view(FIRST_VIEW) == fresh(store, FIRST_VIEW)
+        assert draws == [FIRST_VIEW]  # the first request found it drawn
+    finally:
+        projector.stop()
+        restarted.close()
         store.close()
 
 

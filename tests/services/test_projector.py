@@ -56,6 +56,9 @@ class RecordingView:
     def follow(self) -> int | None:
         return 0
 
+    def prepared(self) -> None:
+        pass
+
     def wait_for_updates(self, count: int) -> None:
         with self.updated:
             assert self.updated.wait_for(lambda: len(self.updates) >= count, timeout=10)

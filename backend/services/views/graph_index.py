@@ -165,7 +165,7 @@ class GraphIndex:
                 _store_facts(connection, batch, self.kept_literals)
             iris = [row[0] for row in connection.execute("SELECT iri FROM graph_nodes")]
             _derive(connection, iris)
-        self._kept_first_view(self.db.reader())  # for the first visitor, who would otherwise wait for it
+        self.prepared()
         self.changed_through = through
         self.changed.notify()
         logger.info("graph index built: %d nodes", len(iris))
@@ -193,6 +193,10 @@ class GraphIndex:
         if touched:
             self.changed_through = through
             self.changed.notify()
+
+    def prepared(self) -> None:
+        """Draw the first view now, built or caught up: the first visitor would otherwise wait for it."""
+        self._kept_first_view(self.db.reader())
 
     def clear(self, through: int) -> None:
         with self.db.writing() as connection:

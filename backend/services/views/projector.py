@@ -75,6 +75,10 @@ class Projection(Protocol):
         """Read the view as another process keeps it (never writing): the journal sequence it includes, or
         None while it is not there to be read."""
 
+    def prepared(self) -> None:
+        """The view was built or caught up at start, and answers from now on (a view may get ready to answer
+        its first request here)."""
+
 
 @dataclass
 class _Marker:
@@ -286,6 +290,7 @@ class Projector:
                 except Exception:  # as in `_process_retrying`: the thread must live on, and the view be current
                     logger.exception("catching view %s up failed; building it again", projection.name)
                     self._build(projection, current)
+            projection.prepared()
             projection.ready = True
         self._advance(current)
 

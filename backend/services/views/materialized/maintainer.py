@@ -115,6 +115,9 @@ class ReportProjection:
         fingerprint, through = self.rows.state(self.name)
         return through if fingerprint == self.fingerprint else None
 
+    def prepared(self) -> None:
+        pass  # pages are read from the rows as they are
+
     def build(self, through: int) -> None:
         self.rows.create(self.layout, fresh=True)
         rows = self._evaluate(None)
