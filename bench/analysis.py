@@ -20,7 +20,9 @@ MACHINE_NOTE = [
     "differences of a few tenths of a millisecond as noise. Whole runs differ more: on 2026-11-24 three runs of",
     "section 1 on the same code put the embedded small post's p50 at 3.4, 4.6 and 6.5 ms, and the in-process",
     "steps of its breakdown moved together by up to 2x (a virtual machine whose neighbours vary). Compare rows",
-    "of one run with each other, not with another run's.",
+    "of one run with each other, not with another run's. Machines differ more still: the runs on this page",
+    "(2026-11-25 from 16:10 UTC) are from a fresh machine about twice as fast as the one before (with the same",
+    "ingest code, 16 robots on the embedded store reached 187 posts/s here and 98 there).",
     "",
     "The bench's own garbage collector is off while it measures (each server's start collects): its full",
     "collections grew with the answers it had read, to a second by the end of a reports run, and a pause",
@@ -128,14 +130,20 @@ def workers_notes(robots: dict[str, ManyRobots]) -> list[str]:
         return []
     best_name, best = max(rows.items(), key=lambda item: item[1].posts_per_second)
     one = next(iter(rows.values()))
+    gain = best.posts_per_second / one.posts_per_second if one.posts_per_second else 0.0
+    limit = (
+        "more workers mostly move the queue from one place to another"
+        if gain < 1.3
+        else "the gain stays well short of the number of workers"
+    )
     text = (
         f"**API workers on Virtuoso** (`API_WORKERS`, the rows *{'*, *'.join(rows)}*): the best was *{best_name}* "
         f"at {best.posts_per_second:.0f} posts/s (p99 {best.latency.p99:,.0f} ms), against "
-        f"{one.posts_per_second:.0f} posts/s (p99 {one.latency.p99:,.0f} ms) for one process. This machine has 2 "
-        "cores, and the 16 client threads, Virtuoso and every worker share them, so more workers mostly move the "
-        "queue from one place to another: Virtuoso's own CPU per post (the applier's writes and the views' "
-        "queries) is the limit here, as the capacity model in docs/scaling.md shows. Each row is one run, and "
-        "whole runs differ by up to a factor of 2 here."
+        f"{one.posts_per_second:.0f} posts/s (p99 {one.latency.p99:,.0f} ms) for one process ({gain:.1f}x). This "
+        f"machine has 2 cores, and the 16 client threads, Virtuoso and every worker share them, so {limit}: "
+        "Virtuoso's own CPU per post (the applier's writes and the views' queries) is the limit here, as the "
+        "capacity model in docs/scaling.md shows. Each row is one run, and whole runs differ by up to a factor of "
+        "2 here."
     )
     shared = {name: run for name, run in rows.items() if POSTGRES_LABEL in name}
     if shared:
@@ -242,10 +250,23 @@ def live_notes(live: dict[tuple[str, int], LiveReports]) -> list[str]:
             "emotions had doubled the emotion timeline's upkeep), the first view is drawn by the keeper rather",
             "than by a waiting request, a filtered page sorts its index's keys rather than its rows, and the",
             "robot's checker follows the live stream as a page does instead of asking for the conversations 50",
-            "times a second, which had been a load of its own. Not every run keeps the 1 s bound on a post's rows",
-            "at a million triples on Virtuoso: their p50 is 0.5 to 0.6 s, and the slowest of about 60 took 0.7 to",
-            "1.2 s over five runs at 2eb9e9f to 076c557. A post waits for the batch under way, the rest after it",
-            "and its own batch, each about a quarter of a second there.",
+            "times a second, which had been a load of its own.",
+            "",
+            "A post's rows at a million triples on Virtuoso wait for the batch under way, the rest after it and",
+            "their own batch. On the machine of earlier runs (2026-11-24 and 25, about half as fast: its 1M import",
+            "took 109 s against 56 s here) each was about a quarter of a second, and the slowest of about 60 posts",
+            "took 0.7 to 1.2 s over five runs at 2eb9e9f to 076c557. Here a batch takes about 0.14 s (traced: 135 ms",
+            "p50, 170 ms p95), and three runs at 389b60c, 81a210c and 0ae015e put the p99 at 0.54, 0.56 and 0.48",
+            "s. Since 3be2a1e a",
+            "rest no longer keeps a step waiting more than 0.4 s since it was applied, which bounds that wait on a",
+            "slower machine; with one or two busy cores taken from this one, batches grew to 0.18 and 0.21 s and the",
+            "p99 stayed within 0.6 to 0.75 s with the bound and without it (one run each: run to run noise).",
+            "",
+            "Tried and left out: handing Virtuoso a batch's keys in a graph of their own instead of VALUES, so a",
+            "report's text, and so its plan, stays the same. Alone, the conversations report for three keys took 7",
+            "ms instead of 28 (the emotion timeline needed its `|` path written as a UNION, or took 500 ms). Under",
+            "live ingest the writes of the keys, one per report and batch beside the applier's, made the batches",
+            "slower (135 to 260 ms p50, 894 ms p95), so VALUES stayed.",
             "",
         ]
     )

@@ -62,11 +62,8 @@ class Figures:
         if added:
             sizes = ", ".join(f"{store} {size:,}" for store, size in added)
             finished = f"{other.finished:%Y-%m-%d}" if other.finished else "another day"
-            command = getattr(other, "command", "") or (
-                f"python -m bench --profile {other.profile}{'' if other.virtuoso else ' --no-virtuoso'}"
-            )
             self.added_runs.append(
-                f"Section 5's rows for {sizes} triples come from `{command}`"
+                f"Section 5's rows for {sizes} triples come from `{_command(other)}`"
                 + (f" ({other.code})" if other.code and other.code != self.code else "")
                 + f", run on the same machine on {finished} "
                 f"({other.wall_seconds:.0f} s, load average at start {other.machine.get('load average at start')})."
@@ -74,6 +71,11 @@ class Figures:
 
     def console_table(self) -> str:
         return "\n".join(_sections(self))
+
+
+def _command(f: Figures) -> str:
+    """How the run was started: its recorded command, or (figures saved before it was kept) its profile."""
+    return getattr(f, "command", "") or f"python -m bench --profile {f.profile}{'' if f.virtuoso else ' --no-virtuoso'}"
 
 
 def _sections(f: Figures) -> list[str]:
@@ -346,8 +348,8 @@ def write_report(f: Figures, path: Path) -> None:
     header = [
         "# Performance",
         "",
-        f"Measured {f.finished or datetime.now(UTC):%Y-%m-%d} with `python -m bench --profile {f.profile}"
-        f"{'' if f.virtuoso else ' --no-virtuoso'}` ({f.wall_seconds:.0f} s). Server and clients on one machine,"
+        f"Measured {f.finished or datetime.now(UTC):%Y-%m-%d} with `{_command(f)}` ({f.wall_seconds:.0f} s). Server"
+        " and clients on one machine,"
         " over loopback HTTP; each server runs in",
         "its own process. Payloads come from the emotion-mirror robot (`examples/emotion_mirror`) logging with",
         "the PyPI client `semantic-log-generator` 1.0.5. The naive baseline (`bench/baseline.py`) is the",
