@@ -101,7 +101,9 @@ def build_services(
     for query in catalog.under(REPORTS_FOLDER):
         maintainer.add(query)
     index = GraphIndex(store, None if in_memory else settings.data_dir / GRAPH_FILE, detail_literals=TOLD_LITERALS)
-    views = Projector(store, journal, [*maintainer.projections(), index], views_leadership, applier)
+    views = Projector(
+        store, journal, [*maintainer.projections(), index], views_leadership, applier, maintainer.drop_unkept
+    )
     applier.on_applied(views.on_applied)
     graph = GraphService(
         catalog,

@@ -8,7 +8,9 @@ from __future__ import annotations
 import json
 import logging
 import shutil
+import sqlite3
 from collections.abc import Iterator
+from contextlib import closing
 from pathlib import Path
 
 import httpx
@@ -16,6 +18,8 @@ import pytest
 
 from segb_server.backend.api.app import create_app
 from segb_server.backend.config import PACKAGE_ROOT
+from segb_server.backend.services.container import REPORTS_FILE
+from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.conftest import make_settings
 from tests.support.live_server import LiveServer
 from tests.support.settle import settle
@@ -175,3 +179,48 @@ def test_a_preset_stream_tells_the_changes_of_the_rows_it_shares(server: str) ->
     event = first_event(f"{server}/reports/stream?report=friends-of-001", {"Last-Event-ID": "0"})  # replay all
     assert event["event"] == "change"
     assert json.loads(event["data"]) == {"report": "friends-of-001", "units": ["<https://example.org/p/000>"]}
+
+
+def test_the_rows_of_a_report_no_longer_kept_are_dropped_at_the_next_start(tmp_path: Path) -> None:
+    """A report removed from the catalog, or become a preset of another, leaves no tables or state behind once
+    the server starts again; the reports still kept are read from their rows as before."""
+    sparql = tmp_path / "sparql"
+    shutil.copytree(PACKAGE_ROOT / "sparql", sparql)
+    (sparql / "reports" / "named-agents.rq").write_text(NAMED)
+    (sparql / "reports" / "agents-by-friend.rq").write_text(BY_FRIEND)
+    (sparql / "reports" / "friends-of-001.rq").write_text(BY_FRIEND.replace("Agents by friend", "Friends of P001"))
+    store = OxigraphStore("http://amor-segb/events", tmp_path / "oxigraph")
+    settings = make_settings(store="oxigraph", data_dir=tmp_path / "data", sparql_dir=sparql)
+    try:
+        with LiveServer(create_app(settings, store=store)) as live:
+            post(live.url, people(6))
+            settle(live.url)
+        tables, states = stored_reports(settings.data_dir / REPORTS_FILE)
+        assert {"report_reports_named_agents", "report_reports_friends_of_001"} <= tables
+        assert {"reports/named-agents", "reports/friends-of-001"} <= states
+
+        (sparql / "reports" / "named-agents.rq").unlink()
+        (sparql / "reports" / "friends-of-001.rq").write_text(FRIENDS_OF_001)  # now a preset: its base's rows
+        with LiveServer(create_app(settings, store=store)) as live:
+            settle(live.url)
+            body = httpx.get(f"{live.url}/reports/friends-of-001", timeout=30).json()
+            assert body["served_from"] == "rows"
+        tables, states = stored_reports(settings.data_dir / REPORTS_FILE)
+        assert not any(
+            name.startswith(("report_reports_named_agents", "report_reports_friends_of_001")) for name in tables
+        ), tables
+        assert {"reports/named-agents", "reports/friends-of-001"}.isdisjoint(states)
+        assert {
+            "report_reports_agents_by_friend",
+            "report_reports_conversations",
+        } <= tables and "reports/agents-by-friend" in states
+    finally:
+        store.close()
+
+
+def stored_reports(path: Path) -> tuple[set[str], set[str]]:
+    """The tables of a reports database and the reports whose state it holds."""
+    with closing(sqlite3.connect(path)) as connection:
+        tables = {row[0] for row in connection.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+        states = {row[0] for row in connection.execute("SELECT report FROM report_state")}
+    return tables, states

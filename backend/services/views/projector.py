@@ -25,6 +25,7 @@ import logging
 import queue
 import threading
 import time
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Protocol
@@ -101,14 +102,17 @@ class Projector:
         projections: list[Projection],
         leadership: Leadership | None = None,
         applier: Applier | None = None,
+        housekeeping: Callable[[], None] | None = None,
     ) -> None:
         """`applier`: the process's applier, when the views' leadership is not its (then, while it does not
-        apply, the views read what it saw applied from the journal)."""
+        apply, the views read what it saw applied from the journal). `housekeeping`: run once the views are
+        ready, by the process that keeps them (the only one that writes them)."""
         self.store = store
         self.journal = journal
         self.projections = projections
         self.leadership = leadership or Leadership(None)
         self._applier = applier if applier is not None and applier.leadership is not self.leadership else None
+        self._housekeeping = housekeeping
         self._queue: queue.Queue[_Waiting | None] = queue.Queue()
         self._thread: threading.Thread | None = None
         self._stopping = threading.Event()  # ends retry waits too: a store that never returns must not hold shutdown
@@ -187,6 +191,11 @@ class Projector:
                 logger.warning("building the views failed (%s); retrying", error)
                 if self._stopping.wait(2):
                     return
+        if self._housekeeping is not None:
+            try:
+                self._housekeeping()
+            except Exception:  # leftovers stay for the next start; the views are kept current meanwhile
+                logger.exception("tidying the views' storage failed")
         rested = 0.0  # when the rest after the last batch ends (time.monotonic())
         while True:
             steps = self._next_steps(rested)

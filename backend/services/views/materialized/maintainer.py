@@ -70,6 +70,13 @@ class ReportMaintainer:
         """Every projection once, for the projector (presets share theirs)."""
         return list(self._by_source.values())
 
+    def drop_unkept(self) -> None:
+        """Drop the rows of reports no longer kept (removed from the catalog, or become a preset)."""
+        kept = self.projections()
+        dropped = self.rows.drop_unkept({t for p in kept for t in p.layout.tables}, {p.name for p in kept})
+        if dropped:
+            logger.info("dropped the rows of reports no longer kept: %s", ", ".join(dropped))
+
     def served(self) -> dict[str, list[str]]:
         """Each projection's name → the reports its rows serve: its own, and the presets sharing them."""
         served: dict[str, list[str]] = {}

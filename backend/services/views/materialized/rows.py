@@ -13,7 +13,7 @@ from __future__ import annotations
 import base64
 import json
 import struct
-from collections.abc import Iterable, Sequence
+from collections.abc import Collection, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -117,6 +117,9 @@ class Layout:
         return self.plan.group_by if self.plan.is_aggregate else self.plan.columns
 
 
+OWN_TABLES = ("report_state", "report_changes")  # the database's own, beside each report's tables
+
+
 class ReportRows:
     """Every materialised report's rows in one SQLite database (a file in the data directory, or temporary)."""
 
@@ -148,6 +151,19 @@ class ReportRows:
                 "fingerprint = excluded.fingerprint, through = excluded.through",
                 (report, fingerprint, through),
             )
+
+    def drop_unkept(self, tables: Collection[str], reports: Collection[str]) -> list[str]:
+        """Drop every report table but `tables`, and the state of every report but `reports`: those of reports
+        removed from the catalog, or become presets of another (their space is reused). Returns the tables
+        dropped."""
+        with self.db.writing() as connection:
+            stored = [row[0] for row in connection.execute("SELECT name FROM sqlite_master WHERE type = 'table'")]
+            dropped = [name for name in stored if name.startswith("report_") and name not in (*tables, *OWN_TABLES)]
+            for name in dropped:
+                connection.execute(f'DROP TABLE "{name}"')
+            marks = ", ".join("?" * len(reports))
+            connection.execute(f"DELETE FROM report_state WHERE report NOT IN ({marks})", list(reports))
+        return dropped
 
     # --- writing -------------------------------------------------------------------------------------
 
