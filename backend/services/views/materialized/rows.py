@@ -157,8 +157,9 @@ class ReportRows:
         removed from the catalog, or become presets of another (their space is reused). Returns the tables
         dropped."""
         with self.db.writing() as connection:
+            kept = {*tables, *OWN_TABLES}
             stored = [row[0] for row in connection.execute("SELECT name FROM sqlite_master WHERE type = 'table'")]
-            dropped = [name for name in stored if name.startswith("report_") and name not in (*tables, *OWN_TABLES)]
+            dropped = [name for name in stored if name.startswith("report_") and name not in kept]
             for name in dropped:
                 connection.execute(f'DROP TABLE "{name}"')
             marks = ", ".join("?" * len(reports))
