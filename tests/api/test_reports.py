@@ -225,6 +225,8 @@ def test_same_rows_on_both_stores(published: Published) -> None:
     for report in published.get("oxigraph", "/reports").json()["reports"]:
         embedded = published.get("oxigraph", report["href"]).json()
         virtuoso = published.get("virtuoso", report["href"]).json()
+        # Each server's stream counts the batches its own views made; the rows are what must agree.
+        assert embedded.pop("last_event_id") > 0 and virtuoso.pop("last_event_id") > 0
         assert embedded == virtuoso, report["name"]
 
 

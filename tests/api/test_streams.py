@@ -1,6 +1,6 @@
 """The event streams' inputs: an unknown report is refused up front, and a resume position the server does not
 know (garbage, or from before a restart) never fails the stream. A change wakes the streams of the process that
-made it at once, without waiting for their next look."""
+made it at once, without waiting for their next look. A report page tells where its stream resumes."""
 
 from __future__ import annotations
 
@@ -9,10 +9,11 @@ import time
 
 import httpx
 import pytest
+from semantic_log_generator import ActivityKind, SEGBPublisher
 
 from segb_server.backend.api.routes import live
 from tests.support.live_server import LiveServer
-from tests.support.scenarios import lobby
+from tests.support.scenarios import at, lobby, robot_logger
 from tests.support.settle import settle
 from tests.support.streams import first_event
 
@@ -62,3 +63,25 @@ def test_a_post_wakes_both_streams_without_polling(memory_api: LiveServer, monke
         "/reports/stream": "dict",
         "/graph/stream": "dict",
     }, heard
+
+
+def test_a_report_page_tells_where_its_stream_resumes(memory_api: LiveServer) -> None:
+    """A page's `last_event_id` is the stream position its rows include: resuming from it announces the next
+    change, and a page read after that change includes it."""
+    lobby().publish_all(memory_api.url)
+    page = httpx.get(f"{memory_api.url}/reports/conversations", timeout=30).json()
+    assert page["served_from"] == "rows" and page["last_event_id"] > 0
+    before = page["last_event_id"]
+
+    robot = robot_logger("ari", "ARI")
+    maria = robot.register_human("maria", first_name="Maria")
+    heard = robot.log_activity(activity_id="listen_late", activity_kind=ActivityKind.LISTENING, started_at=at(900))
+    robot.log_message("After the page", message_id="late", sender=maria, language="en", generated_by_activity=heard)
+    SEGBPublisher(base_url=memory_api.url).publish_turtle(robot.serialize())
+    settle(memory_api.url)
+
+    event = first_event(f"{memory_api.url}/reports/stream?report=conversations", {"Last-Event-ID": str(before)})
+    assert event["event"] == "change" and int(event["id"]) > before
+    later = httpx.get(f"{memory_api.url}/reports/conversations", timeout=30).json()
+    assert later["last_event_id"] >= int(event["id"])
+    assert "After the page" in str(later["rows"]) and "After the page" not in str(page["rows"])

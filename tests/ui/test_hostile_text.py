@@ -8,6 +8,7 @@ from semantic_log_generator import ActivityKind, SEGBPublisher
 
 from tests.conftest import UiStack
 from tests.support.scenarios import INITIAL, RESPONSE, at, robot_logger
+from tests.support.settle import settle
 
 pytestmark = pytest.mark.browser
 
@@ -34,6 +35,7 @@ def publish_hostile(api_url: str) -> dict[str, str]:
     turtle = f"<{said}> <http://www.w3.org/2000/01/rdf-schema#seeAlso> <{JAVASCRIPT_IRI}> ."
     posted = httpx.post(f"{api_url}/ttl", content=turtle, headers={"Content-Type": "text/turtle"})
     assert posted.status_code == 201
+    settle(api_url)  # the graph and the reports are read once: they must include both posts
     return {"said": str(said), "human": str(human)}
 
 

@@ -13,6 +13,7 @@ from semantic_log_generator import ActivityKind, SEGBPublisher
 
 from tests.conftest import UiStack
 from tests.support.scenarios import at, lobby, robot_logger
+from tests.support.settle import settle
 
 pytestmark = pytest.mark.browser
 
@@ -53,6 +54,30 @@ def test_a_published_message_appears_in_the_open_report_without_navigation(ui_st
     page.locator("#report-conversations", has_text="Paused: nobody should see this yet").wait_for(
         timeout=ARRIVAL_TIMEOUT_MS
     )
+    assert page.console_errors == []
+
+
+@pytest.mark.parametrize("path", ["/reports", "/reports/conversations"])
+def test_a_message_applied_before_the_stream_opens_still_appears(ui_stack: UiStack, page, path: str) -> None:  # type: ignore[no-untyped-def]
+    """The page's rows and its stream must meet: a change the views make after the rows were read but before
+    the browser opens its stream is announced on that stream, not lost until a reload."""
+    lobby().publish_all(ui_stack.api_url)
+    held: list[str] = []
+
+    def apply_a_message_first(route) -> None:  # type: ignore[no-untyped-def]
+        if not held:  # the page's first connection: the message is published and in the rows before it opens
+            held.append(route.request.url)
+            publish_message(ui_stack.api_url, "Landed while the page was opening")
+            settle(ui_stack.api_url)
+        route.continue_()
+
+    page.route("**/live/reports*", apply_a_message_first)
+    page.goto(f"{ui_stack.ui_url}{path}")
+    page.evaluate("window.__sameDocument = true")
+    page.locator("#report-conversations", has_text="Landed while the page was opening").wait_for(
+        timeout=ARRIVAL_TIMEOUT_MS
+    )
+    assert held and page.evaluate("window.__sameDocument") is True
     assert page.console_errors == []
 
 

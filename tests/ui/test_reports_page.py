@@ -10,6 +10,7 @@ from tests.conftest import UiStack, make_settings
 from tests.support.live_server import LiveServer
 from tests.support.net import free_port
 from tests.support.scenarios import RESPONSE, at, lobby
+from tests.support.settle import settle
 
 pytestmark = pytest.mark.browser
 
@@ -26,6 +27,7 @@ def publish_lobby_with_hostile_text(api_url: str) -> dict[str, str]:
         previous_message=scenario.iris["maria_2"], sender=ari.robot_uri,
     )  # fmt: skip
     ari.publish(SEGBPublisher(base_url=api_url))
+    settle(api_url)  # the page is read once: its rows must include the last post
     return {name: str(iri) for name, iri in scenario.iris.items()}
 
 

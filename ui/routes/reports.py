@@ -59,6 +59,13 @@ def _section(name: str, table: dict[str, Any], described: dict[str, Any], names:
     return {"name": name, "info": described, "table": table, **view_of(name, table, names)}
 
 
+def live_after(tables: list[dict[str, Any]]) -> str:
+    """Where the page's live stream starts: the oldest change the page's rows are known to include, so a change
+    made while the page travels to the browser is still announced (empty: from when the stream opens)."""
+    seen = [table["last_event_id"] for table in tables if table.get("last_event_id") is not None]
+    return str(min(seen)) if seen else ""
+
+
 def _supported(filters: dict[str, str], described: dict[str, Any]) -> dict[str, str]:
     accepted = {parameter["name"] for parameter in described["parameters"]}
     return {name: value for name, value in filters.items() if name in accepted}
@@ -90,6 +97,7 @@ async def reports_overview(request: Request) -> HTMLResponse:
             "filters": filters,
             "choices": choices,
             "query": request.url.query,
+            "live_after": live_after(tables),
         },
     )
 
@@ -117,6 +125,7 @@ async def one_report(request: Request, name: str) -> HTMLResponse:
             "query": request.url.query,
             "limit": limit,
             "offset": offset,
+            "live_after": live_after([table]),
         },
     )
 

@@ -9,7 +9,9 @@
   if (!sections.length || !toggle || !window.EventSource) return;
   var source = null;
   var pending = {};
-  var lastId = "";  // resuming after a pause asks for what came since (a new EventSource forgets it)
+  // The stream starts where the page's rows end (a change made while the page loaded is announced), and
+  // resuming after a pause asks for what came since (a new EventSource forgets it).
+  var lastId = toggle.dataset.after || "";
 
   function rowsOf(section) {
     var seen = {};

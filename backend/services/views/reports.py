@@ -47,6 +47,7 @@ class ReportTable:
     has_more: bool
     next: str | None = None  # the cursor of the next page (`after=`), when rows are served from the report's rows
     served_from: str = "query"  # "rows" (kept current as the graph changes) or "query" (evaluated in full)
+    last_event_id: int | None = None  # where `GET /reports/stream` resumes to hear of every later change
 
     def as_json(self) -> dict[str, object]:
         described = describe(self.query)
@@ -63,6 +64,7 @@ class ReportTable:
             "has_more": self.has_more,
             "next": self.next,
             "served_from": self.served_from,
+            "last_event_id": self.last_event_id,
         }
 
     def as_csv(self) -> str:
@@ -124,7 +126,9 @@ class ReportService:
             page = self.maintainer.page(query.name, bound, limit, offset, after)
             if page is not None:
                 columns = [name[1:] for name in self.maintainer.reports[query.name].layout.plan.columns]
-                return ReportTable(query, columns, page.rows, limit, offset, page.has_more, page.after, "rows")
+                return ReportTable(
+                    query, columns, page.rows, limit, offset, page.has_more, page.after, "rows", page.last_event_id
+                )
         if after is not None:
             # Answering the first page instead would send a client paging by cursor round in circles.
             if self.maintainer is None or query.name not in self.maintainer.reports:

@@ -15,7 +15,7 @@ import logging
 import re
 from collections import deque
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from pyoxigraph import Literal, Quad, RdfFormat, Triple, parse
 
@@ -89,7 +89,10 @@ class ReportMaintainer:
         projection = self.reports.get(name)
         if projection is None or not projection.ready:
             return None
-        return self.rows.page(projection.layout, bound, limit, offset, after)
+        # Read before the rows: a change committed meanwhile is announced again to a reader resuming from here
+        # (one refresh too many), never missed.
+        last_event_id = self.rows.last_change()
+        return replace(self.rows.page(projection.layout, bound, limit, offset, after), last_event_id=last_event_id)
 
 
 class ReportProjection:

@@ -39,6 +39,7 @@ class Page:
     rows: list[dict[str, JsonValue]]
     has_more: bool
     after: str | None  # cursor of the last row, for the next page
+    last_event_id: int = 0  # the last change (of `GET /reports/stream`) these rows are known to include
 
 
 @dataclass(frozen=True)
