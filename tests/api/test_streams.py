@@ -9,11 +9,10 @@ import time
 
 import httpx
 import pytest
-from semantic_log_generator import ActivityKind, SEGBPublisher
 
 from segb_server.backend.api.routes import live
 from tests.support.live_server import LiveServer
-from tests.support.scenarios import at, lobby, robot_logger
+from tests.support.scenarios import lobby, publish_message
 from tests.support.settle import settle
 from tests.support.streams import first_event
 
@@ -31,13 +30,29 @@ def test_a_graph_stream_resumed_from_an_unknown_position_says_fetch_again(memory
         assert (event["event"], int(event["id"])) == ("change", through)
 
 
-def test_a_report_stream_with_a_garbage_position_starts_from_now(memory_api: LiveServer) -> None:
+GARBAGE_POSITIONS = {
+    "word": "garbage",
+    "negative": "-1",
+    "decimal": "1.5",
+    "20 digits": "9" * 20,
+    "5000 digits": "9" * 5000,
+}
+
+
+@pytest.mark.parametrize("position", GARBAGE_POSITIONS.values(), ids=GARBAGE_POSITIONS.keys())
+def test_a_report_stream_with_a_garbage_position_starts_from_now(memory_api: LiveServer, position: str) -> None:
+    """Past SQLite's integers (20 digits) or Python's digit limit (5,000) a position is garbage too."""
     lobby().publish_all(memory_api.url)
     with httpx.stream(
-        "GET", f"{memory_api.url}/reports/stream", headers={"Last-Event-ID": "garbage"}, timeout=30
+        "GET", f"{memory_api.url}/reports/stream", headers={"Last-Event-ID": position}, timeout=30
     ) as stream:
         assert stream.status_code == 200
-        assert next(stream.iter_lines()) == "retry: 2000"  # no reset, no replay: nothing to resume from
+        lines = stream.iter_lines()
+        assert next(lines) == "retry: 2000"  # no reset, no replay: nothing to resume from
+        publish_message(memory_api.url, "After a garbage position")  # and later changes still arrive
+        deadline = time.monotonic() + 20  # a keep-alive comment every 15 s gives the loop a turn
+        while not next(lines).startswith("event: change"):
+            assert time.monotonic() < deadline, "no change was announced"
 
 
 def test_a_post_wakes_both_streams_without_polling(memory_api: LiveServer, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -73,11 +88,7 @@ def test_a_report_page_tells_where_its_stream_resumes(memory_api: LiveServer) ->
     assert page["served_from"] == "rows" and page["last_event_id"] > 0
     before = page["last_event_id"]
 
-    robot = robot_logger("ari", "ARI")
-    maria = robot.register_human("maria", first_name="Maria")
-    heard = robot.log_activity(activity_id="listen_late", activity_kind=ActivityKind.LISTENING, started_at=at(900))
-    robot.log_message("After the page", message_id="late", sender=maria, language="en", generated_by_activity=heard)
-    SEGBPublisher(base_url=memory_api.url).publish_turtle(robot.serialize())
+    publish_message(memory_api.url, "After the page")
     settle(memory_api.url)
 
     event = first_event(f"{memory_api.url}/reports/stream?report=conversations", {"Last-Event-ID": str(before)})

@@ -7,6 +7,7 @@ graph after every step, as `SemanticSEGBLogger.publish()` does on a real robot.
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import UTC, datetime, timedelta
@@ -265,3 +266,16 @@ def keep_busy(base_url: str, robot: str, activities: int) -> None:
         for i in range(activities)
     )
     assert httpx.post(f"{base_url}/ttl", json={"ttl_content": busy}, timeout=60).status_code == 201
+
+
+def publish_message(api_url: str, text: str) -> str:
+    """What ARI logs when it hears Maria say `text`, published by the robots' client; the message's IRI."""
+    robot = robot_logger("ari", "ARI")
+    maria = robot.register_human("maria", first_name="Maria")
+    key = hashlib.sha256(text.encode()).hexdigest()[:12]
+    heard = robot.log_activity(activity_id=f"listen_{key}", activity_kind=ActivityKind.LISTENING, started_at=at(600))
+    message = robot.log_message(
+        text, message_id=f"live_{key}", sender=maria, language="en", generated_by_activity=heard
+    )
+    SEGBPublisher(base_url=api_url).publish_turtle(robot.serialize())
+    return str(message)

@@ -4,33 +4,18 @@ pausing stops the updates, resuming shows what was missed."""
 
 from __future__ import annotations
 
-import hashlib
 import time
 
 import httpx
 import pytest
-from semantic_log_generator import ActivityKind, SEGBPublisher
 
 from tests.conftest import UiStack
-from tests.support.scenarios import at, lobby, robot_logger
+from tests.support.scenarios import lobby, publish_message
 from tests.support.settle import settle
 
 pytestmark = pytest.mark.browser
 
 ARRIVAL_TIMEOUT_MS = 10_000  # the figure to meet (≤ 1 s) is measured by the benchmark, not by this test
-
-
-def publish_message(api_url: str, text: str) -> str:
-    """What ARI logs when it hears Maria say `text`, published by the robots' client; the message's IRI."""
-    robot = robot_logger("ari", "ARI")
-    maria = robot.register_human("maria", first_name="Maria")
-    key = hashlib.sha256(text.encode()).hexdigest()[:12]
-    heard = robot.log_activity(activity_id=f"listen_{key}", activity_kind=ActivityKind.LISTENING, started_at=at(600))
-    message = robot.log_message(
-        text, message_id=f"live_{key}", sender=maria, language="en", generated_by_activity=heard
-    )
-    SEGBPublisher(base_url=api_url).publish_turtle(robot.serialize())
-    return str(message)
 
 
 def test_a_published_message_appears_in_the_open_report_without_navigation(ui_stack: UiStack, page) -> None:  # type: ignore[no-untyped-def]
@@ -79,6 +64,17 @@ def test_a_message_applied_before_the_stream_opens_still_appears(ui_stack: UiSta
     )
     assert held and page.evaluate("window.__sameDocument") is True
     assert page.console_errors == []
+
+
+@pytest.mark.parametrize("relay", ["/live/reports", "/live/graph"])
+@pytest.mark.parametrize("position", ["é", "1\r\nX-Injected: yes", "9" * 5000], ids=["non-ascii", "crlf", "long"])
+def test_the_relay_drops_a_position_its_stream_never_sent(ui_stack: UiStack, relay: str, position: str) -> None:
+    """`after=` comes from the page's URL: anything but an event id starts the stream from now, never an error
+    (nor a header of its own on the way to the API)."""
+    with httpx.stream("GET", f"{ui_stack.ui_url}{relay}", params={"after": position}, timeout=30) as stream:
+        assert stream.status_code == 200
+        assert stream.headers["content-type"].startswith("text/event-stream")
+        assert next(stream.iter_lines()) == "retry: 2000"
 
 
 def test_the_api_stream_names_the_changed_report_and_resumes_from_an_event_id(ui_stack: UiStack) -> None:

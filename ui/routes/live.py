@@ -29,7 +29,11 @@ async def live_graph(request: Request) -> StreamingResponse:
 
 async def _relay(request: Request, path: str, params: dict[str, list[str]]) -> StreamingResponse:
     # A reconnecting EventSource sends Last-Event-ID; a page resuming after a pause passes `after=` instead.
-    resume = request.headers.get("last-event-id") or request.query_params.get("after")
+    # Event ids are digits: anything else was never sent by a stream, and goes no further (the stream starts
+    # from now) rather than into a header of the request to the API.
+    resume = request.headers.get("last-event-id") or request.query_params.get("after") or ""
+    if not (resume.isascii() and resume.isdigit()):
+        resume = ""
     answer = await backend(request).open_stream(
         path,
         token=token(request),

@@ -24,6 +24,7 @@ router = APIRouter(tags=["reports"])
 
 POLL_SECONDS = 0.1  # how soon a reader hears of another process's change: a cheap read per open stream
 KEEP_ALIVE_SECONDS = 15.0
+MAX_EVENT_ID_DIGITS = 18
 
 
 @router.get(
@@ -48,10 +49,10 @@ async def stream(
         raise NotFound("This server keeps no live reports.")
     rows = maintainer.rows
     served = maintainer.served()
-    resume = request.headers.get("last-event-id", "")
+    resume = event_id(request.headers.get("last-event-id", ""))
     # Where a new reader starts is read before the answer's headers go out: a change made as soon as the
     # reader sees them is after it, and is sent.
-    last = int(resume) if resume.isdigit() else await anyio.to_thread.run_sync(rows.last_change)
+    last = resume if resume is not None else await anyio.to_thread.run_sync(rows.last_change)
 
     async def changes() -> list[bytes]:
         nonlocal last
@@ -66,7 +67,7 @@ async def stream(
         ]
 
     async def opening() -> list[bytes]:
-        if not resume.isdigit():
+        if resume is None:
             return []
         oldest = await anyio.to_thread.run_sync(rows.oldest_change)
         return [b"event: reset\ndata: {}\n\n"] if last < oldest - 1 else []
@@ -104,6 +105,12 @@ async def graph_stream(request: Request, services: ServicesDep, principal: Audit
         return []
 
     return _event_stream(request, opening, changes, index.changed)
+
+
+def event_id(raw: str) -> int | None:
+    """A report stream's position as a reader sends it back, or None for anything the stream never sent: the
+    reader then starts from now. Ids fit SQLite's integers (under 19 digits); larger ones are no position."""
+    return int(raw) if raw.isascii() and raw.isdigit() and len(raw) <= MAX_EVENT_ID_DIGITS else None
 
 
 def _event_stream(
