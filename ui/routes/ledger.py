@@ -8,6 +8,7 @@ from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse
 
 from segb_server.ui.pages import backend, render, token
+from segb_server.ui.query_params import paging
 
 router = APIRouter()
 
@@ -15,18 +16,10 @@ PAGE_ROWS = 100
 MAX_ROWS = 1000  # the API's largest page
 
 
-def _paging(request: Request) -> tuple[int, int]:
-    def whole(name: str, default: int) -> int:
-        raw = request.query_params.get(name, "")
-        return int(raw) if raw.isdigit() else default
-
-    return max(1, min(whole("limit", PAGE_ROWS), MAX_ROWS)), whole("offset", 0)
-
-
 @router.get("/ledger", response_class=HTMLResponse)
 async def ledger_page(request: Request) -> HTMLResponse:
     client, user_token = backend(request), token(request)
-    limit, offset = _paging(request)
+    limit, offset = paging(request, PAGE_ROWS, MAX_ROWS)
     listing, verification = await asyncio.gather(
         client.get_json("/ledger", token=user_token, params={"limit": limit, "offset": offset}),
         client.get_json("/ledger/verify", token=user_token),

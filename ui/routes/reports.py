@@ -12,7 +12,7 @@ from segb_server.ui.api_client import BackendError
 from segb_server.ui.choices import participant_choices
 from segb_server.ui.namesakes import Name, entity_names
 from segb_server.ui.pages import backend, render, token
-from segb_server.ui.query_params import query_values
+from segb_server.ui.query_params import paging, query_values
 from segb_server.ui.report_views import OVERVIEW_ORDER, view_of
 
 router = APIRouter()
@@ -45,14 +45,6 @@ def report_filters(request: Request, parameters: list[dict[str, Any]]) -> dict[s
     """The page's values for these parameters (times the browser picked get their UTC zone)."""
     times = tuple(p["name"] for p in parameters if p["type"] == "dateTime")
     return query_values(request, tuple(p["name"] for p in parameters), times)
-
-
-def _paging(request: Request, default_limit: int, max_limit: int) -> tuple[int, int]:
-    def whole(name: str, default: int) -> int:
-        raw = request.query_params.get(name, "")
-        return int(raw) if raw.isdigit() else default
-
-    return max(1, min(whole("limit", default_limit), max_limit)), whole("offset", 0)
 
 
 def _section(name: str, table: dict[str, Any], described: dict[str, Any], names: dict[str, Name]) -> dict[str, Any]:
@@ -109,7 +101,7 @@ async def one_report(request: Request, name: str) -> HTMLResponse:
     if described is None:
         raise BackendError(404, f"No report named '{name}'.")
     filters = report_filters(request, described["parameters"])
-    limit, offset = _paging(request, PAGE_ROWS, described["max_limit"])
+    limit, offset = paging(request, PAGE_ROWS, described["max_limit"])
     table, choices = await asyncio.gather(
         client.get_json(f"/reports/{name}", token=user_token, params={**filters, "limit": limit, "offset": offset}),
         participant_choices(request),
@@ -138,7 +130,7 @@ async def download_report(request: Request, name: str, fmt: str) -> Response:
     described = (await report_catalog(request)).get(name)
     if described is None:
         raise BackendError(404, f"No report named '{name}'.")
-    limit, offset = _paging(request, described["max_limit"], described["max_limit"])
+    limit, offset = paging(request, described["max_limit"], described["max_limit"])
     filters = report_filters(request, described["parameters"])
     params = {**filters, "limit": limit, "offset": offset, "format": fmt}
     response = await backend(request).request("GET", f"/reports/{name}", token=token(request), params=params)
