@@ -8,7 +8,7 @@ from pathlib import Path
 import httpx
 import pytest
 from rdflib import Graph, URIRef
-from semantic_log_generator import SEGBPublisher
+from semantic_log_generator import ActivityKind, SEGBPublisher
 
 from segb_server.backend.api.app import create_app
 from segb_server.backend.config import PACKAGE_ROOT
@@ -22,7 +22,8 @@ from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.api.test_ingest_client import FIXTURE_FILES
 from tests.conftest import FIXTURES, make_settings
 from tests.support.live_server import LiveServer
-from tests.support.scenarios import keep_busy, lobby
+from tests.support.scenarios import at, keep_busy, lobby, robot_logger
+from tests.support.settle import settle
 
 
 def get(server: LiveServer, path: str, **params: object) -> httpx.Response:
@@ -112,6 +113,37 @@ def test_explain_a_reply_gives_what_was_heard_the_models_and_the_trigger_in_orde
     assert analysed["emotions"][0]["intensity"] == pytest.approx(0.9)
     assert set(reply["triggered_by"]) == {iris["emotion_maria_1"], iris["listen_maria_1"]}
     assert reply["said"][0]["text"] == "Congratulations, Maria!" and reply["robot"]["label"] == "ARI"
+
+
+def test_words_heard_from_nobody_named_are_not_the_robots_until_the_log_names_a_speaker(api: LiveServer) -> None:
+    """Who said a message, in the conversations report and in its explanation, follows what the log names: an
+    utterance TIAGo only heard is an unidentified speaker's; a later post naming Maria as its sender makes it
+    hers; a reply its response activity produced is TIAGo's."""
+    tiago = robot_logger("tiago", "TIAGo")
+    maria = tiago.register_human("maria", first_name="Maria")
+    heard = tiago.log_activity(activity_id="overhear", activity_kind=ActivityKind.LISTENING, started_at=at(1))
+    words = tiago.log_message("Is it raining?", message_id="overheard", language="en", generated_by_activity=heard)
+    answer = tiago.log_activity(activity_id="reply", activity_kind=ActivityKind.RESPONSE, started_at=at(2))
+    tiago.log_message("Not yet.", message_id="reply", generated_by_activity=answer)
+    publisher = SEGBPublisher(base_url=api.url)
+
+    def told() -> tuple[list[tuple[object, object]], str]:
+        settle(api.url)
+        rows = httpx.get(f"{api.url}/reports/conversations", timeout=30).json()["rows"]
+        story = httpx.get(f"{api.url}/explain", params={"iri": str(words)}, timeout=30).json()
+        seed = next(step for step in story["steps"] if step["role"] == "seed")
+        return sorted((row["text"], row["speaker"]) for row in rows), seed["sentence"]
+
+    tiago.publish(publisher)
+    rows, sentence = told()
+    assert rows == [("Is it raining?", "unidentified"), ("Not yet.", "robot")]
+    assert sentence == "An unidentified speaker said “Is it raining?” (heard by TIAGo)"
+
+    tiago.log_message("Is it raining?", message_id="overheard", language="en", sender=maria)  # named later
+    tiago.publish(publisher)
+    rows, sentence = told()
+    assert rows == [("Is it raining?", "human"), ("Not yet.", "robot")]
+    assert sentence == "Maria said “Is it raining?” (heard by TIAGo)"
 
 
 @pytest.mark.parametrize(

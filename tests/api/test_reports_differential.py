@@ -90,6 +90,7 @@ def server(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[str]:
 @pytest.mark.parametrize("seed", [1, 2])
 def test_reports_equal_their_full_evaluation_after_every_step(server: str, seed: int) -> None:
     history = History(seed)
+    speakers: dict[object, set[object]] = {}  # each message's speakers over the steps: late links change them
     for step in range(16):
         post = history.next_post()
         if post is None:
@@ -118,8 +119,12 @@ def test_reports_equal_their_full_evaluation_after_every_step(server: str, seed:
                 served = report_rows(server, name, accepted, page=12)
                 evaluated = full_evaluation(server, bound_text(query.name, accepted))
                 same_rows(served, evaluated, order, f"step {step}: {name} {accepted}")
+                if name == "conversations" and not accepted:
+                    for row in served:
+                        speakers.setdefault(row["message"], set()).add(row["speaker"])
         served_from = {httpx.get(f"{server}/reports/{query.name[8:]}").json()["served_from"] for query in REPORTS}
         assert served_from == {"rows"}  # compared above: the rows kept current, not an evaluation
+    assert set().union(*speakers.values()) == {"human", "robot", "unidentified"}  # the histories reached each
 
 
 def _order_of(text: str) -> list[str]:

@@ -90,7 +90,14 @@ def shared_context(url: str) -> dict[str, int]:
 
 def assert_nothing_overstated(url: str) -> None:
     """No reply came from a language model (the demo has no Ollama), so none is credited; every emotion a
-    robot expressed about itself is told as expressed, never as analysed with a model."""
+    robot expressed about itself is told as expressed, never as analysed with a model; words TIAGo overheard
+    from a speaker it did not see are nobody's in particular, and never the robot's."""
+    overheard = [row for row in rows(url, "conversations") if row["message"].endswith("/message_overheard_1")]
+    assert [(row["robotName"], row["speaker"]) for row in overheard] == [("TIAGo", "unidentified")]
+    story = httpx.get(f"{url}/explain", params={"iri": overheard[0]["message"]}, timeout=30).json()
+    told = next(step for step in story["steps"] if step["role"] == "seed")["sentence"]
+    assert told.startswith("An unidentified speaker said “I did not expect") and "heard by TIAGo" in told, told
+    assert "TIAGo said" not in told
     usage = rows(url, "ml-usage")
     assert {row["modelName"] for row in usage} == {"Emotion Big6 CNN"}
     expressed = [row for row in rows(url, "emotion-timeline") if row["targetKind"] == "robot"]

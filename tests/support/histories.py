@@ -72,7 +72,6 @@ class History:
         seconds = rng.randrange(0, 3600)  # out-of-order times
         core = [
             f"{activity} {term('rdf:type')} {term('segb:LoggedActivity')} .",
-            f"{activity} {term('rdf:type')} {term(rng.choice(['oro:ListeningEvent', 'oro:ResponseAction']))} .",
             f"{activity} {term('prov:startedAtTime')} {time_literal(seconds)} .",
             f"{message} {term('rdf:type')} {term('schema:Message')} .",
             f'{message} {term("schema:text")} "said {n}"@en .',
@@ -84,7 +83,12 @@ class History:
             f"{event} {term('rdf:type')} {term('schema:Event')} .",
             f"{event} {term('schema:about')} {iri('human', human)} .",
         ]
-        sender = [f"{message} {term('schema:sender')} {iri('human', human)} ."] if rng.random() < 0.6 else []
+        # What tells who spoke may come late: the activity's kind, the message's type, a sender (a human, the
+        # robot, or none).
+        kind = [f"{activity} {term('rdf:type')} {term(rng.choice(['oro:ListeningEvent', 'oro:ResponseAction']))} ."]
+        typed = [f"{message} {term('rdf:type')} {term('oro:InitialMessage')} ."] if rng.random() < 0.3 else []
+        speaker = rng.choices([iri("human", human), iri("robot", robot), None], weights=[5, 2, 3])[0]
+        sender = [f"{message} {term('schema:sender')} {speaker} ."] if speaker else []
         model = [f"{activity} {term('segb:usedMLModel')} {iri('model', rng.choice(['cnn', 'llm']))} ."]
         annotation, emotion = iri("annotation", f"n{n}"), iri("emotion", f"x{n}")
         target = iri("human", human) if rng.random() < 0.7 else iri("robot", robot)
@@ -103,7 +107,7 @@ class History:
             f"{state} {term('prov:generatedAtTime')} {time_literal(seconds)} .",
             f'{state} {term("rdfs:comment")} "note {n}" .',
         ]
-        parts = [core, performed, shared, sender, model, feeling]
+        parts = [core, performed, kind, typed, shared, sender, model, feeling]
         if rng.random() < 0.3:
             parts.append(snapshot)
         return [part for part in parts if part]

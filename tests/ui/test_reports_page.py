@@ -119,3 +119,21 @@ def test_a_time_picked_without_zone_is_read_as_utc(ui_stack: UiStack) -> None:
     answer = httpx.get(f"{ui_stack.ui_url}/reports/emotion-timeline", params={"since": "2026-03-10T09:00:07"})
     assert answer.status_code == 200
     assert "Juan" in answer.text and "Maria" not in answer.text.split('id="report-emotion-timeline"')[1]
+
+
+def test_words_overheard_from_an_unseen_speaker_are_not_the_robots(demo_stack: UiStack, page) -> None:  # type: ignore[no-untyped-def]
+    """TIAGo overheard an utterance without seeing who spoke (the demo logs no sender): the bubble stands on the
+    speakers' side, unnamed, never as TIAGo's words."""
+    page.goto(f"{demo_stack.ui_url}/reports/conversations")
+    said = page.locator(".bubble", has_text="I did not expect to pass on the first try")
+    assert [said.nth(i).get_attribute("class") for i in range(said.count())].count("bubble bubble-unidentified") == 1
+    overheard = said.and_(page.locator(".bubble-unidentified"))
+    assert overheard.locator(".bubble-meta").inner_text().startswith("Unidentified speaker · ")
+    assert "TIAGo" not in overheard.locator(".bubble-meta").inner_text()
+    heard_from_maria = said.and_(page.locator(".bubble-human")).first  # the same words, sent by Maria
+
+    def indent(bubble) -> float:  # type: ignore[no-untyped-def]  # from the left edge of its own chat
+        return bubble.bounding_box()["x"] - bubble.locator("xpath=..").bounding_box()["x"]
+
+    assert indent(overheard) == indent(heard_from_maria) == 0  # on the speakers' side, not the robot's
+    assert page.console_errors == []

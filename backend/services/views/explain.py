@@ -35,6 +35,7 @@ PERFORMED_BY = SEGB + "wasPerformedBy"
 USED_MODEL = SEGB + "usedMLModel"
 ABOUT = SCHEMA + "about"
 SENDER = SCHEMA + "sender"
+INITIAL_MESSAGE = ORO + "InitialMessage"  # a human's input, as the robots' client types it
 HAS_EMOTION = ONYX + "hasEmotion"
 HAS_TARGET = OA + "hasTarget"
 
@@ -235,8 +236,9 @@ class _Reader:
             label=node.literal(RDFS + "label"),
             triggered_by=self.causes(activity),
         )
+        listening = ORO + "ListeningEvent" in types
         for entity in self.produced(activity):
-            self._add_result(step, self.get(entity))
+            self._add_result(step, self.get(entity), listening)
         for model in node.out(USED_MODEL):
             described = self.get(model)
             step.models.append({**self.name(model), "version": described.literal(SCHEMA + "version")})
@@ -245,13 +247,13 @@ class _Reader:
         step.sentence = sentence(step)
         return step
 
-    def _add_result(self, step: Step, entity: Resource) -> None:
+    def _add_result(self, step: Step, entity: Resource, listening: bool) -> None:
         if entity.kind == "message":
             senders = entity.out(SENDER)
             sender = self.name(senders[0]) if senders else None
             message = {"iri": entity.iri, "text": entity.literal(SCHEMA + "text"), "sender": sender}
-            is_human = sender is not None and self.get(sender["iri"]).kind == "human"
-            (step.heard if is_human else step.said).append(message)
+            robot_said = self._said_by_robot(entity, senders, step.robot, listening)
+            (step.said if robot_said else step.heard).append(message)
         elif entity.kind == "emotion":
             targets = [self.name(t) for t in entity.out(HAS_TARGET)]
             expressed = bool(targets) and all(self._is_self(step, target["iri"]) for target in targets)
@@ -266,6 +268,18 @@ class _Reader:
                     "targets": targets,
                     "expressed": expressed,
                 })  # fmt: skip
+
+    def _said_by_robot(
+        self, message: Resource, senders: list[str], robot: dict[str, str] | None, listening: bool
+    ) -> bool:
+        """The conversations report's rule for its `speaker` (sparql/reports/conversations.rq): the robot said a
+        message it sent, or one whose log names no sender and does not mark it as heard (a human's input, or
+        what a listening activity produced). A human sender, or words heard from someone unnamed, are heard."""
+        if any(self.get(sender).kind == "human" for sender in senders):
+            return False
+        if robot is not None and robot["iri"] in senders:
+            return True
+        return not senders and INITIAL_MESSAGE not in message.types() and not listening
 
     def _is_self(self, step: Step, target: str) -> bool:
         """An annotation on the robot that performed the activity is the robot's own, expressed emotion (the
@@ -303,7 +317,7 @@ def sentence(step: Step) -> str:
     expressed = [e for e in step.emotions if e.get("expressed")]
     parts: list[str] = []
     for message in step.heard:
-        who = message["sender"]["label"] if message["sender"] else "A human"
+        who = message["sender"]["label"] if message["sender"] else "An unidentified speaker"
         parts.append(f"{who} said {_quote(message['text'])} (heard by {robot}{via})")
     if analysed:
         parts.append(f"{robot} analysed emotion{'' if step.said else using}: {_readings(analysed, on=True)}")
