@@ -279,6 +279,8 @@ def test_paging_by_cursor_returns_every_row_once_in_order(published: Published, 
         ("/reports/conversations", {"after": "nonsense"}, 422, "after"),
         ("/reports/conversations", {"after": '["2", "x"]'}, 422, "after"),
         ("/reports/conversations", {"after": "WyIyIiwgIngiLCAieSJd"}, 422, "after"),  # base64 of ["2", "x", "y"]
+        # base64 of ["x", "y", 99999999999999999999999]: past SQLite's integers
+        ("/reports/conversations", {"after": "WyJ4IiwgInkiLCA5OTk5OTk5OTk5OTk5OTk5OTk5OTk5OV0"}, 422, "after"),
     ],
 )
 def test_bad_requests_name_the_problem(published: Published, path: str, params: dict, status: int, named: str) -> None:

@@ -427,6 +427,7 @@ def _cursor(after: str) -> list[object]:
         and isinstance(decoded[0], str)
         and isinstance(decoded[1], str)
         and isinstance(decoded[2], int)
+        and 0 <= decoded[2] < 2**63  # a row's index, within SQLite's integers
     ):
         raise InvalidParameter("after", "not a cursor this server made: pass the `next` of the previous page")
     return decoded
