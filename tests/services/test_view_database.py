@@ -63,3 +63,37 @@ def test_writers_on_several_threads_take_turns_each_with_its_own_transaction(tmp
         assert sorted(v for v in written if v > 0) == sorted(-v for v in written if v < 0)
     finally:
         database.close()
+
+
+def open_files(path: Path) -> int:
+    """This process's file descriptors on the database's file."""
+    fds = Path("/proc/self/fd")
+    return sum(1 for fd in fds.iterdir() if _target(fd) == str(path))
+
+
+def _target(fd: Path) -> str:
+    try:
+        return str(fd.readlink())
+    except OSError:  # closed meanwhile
+        return ""
+
+
+def test_the_connections_of_reader_threads_that_ended_are_closed(tmp_path: Path) -> None:
+    """The server's worker threads end when idle and new ones start under the next load: each reads on its own
+    connection, which must not outlive it (or a busy server runs out of file descriptors)."""
+    path = tmp_path / "view.sqlite3"
+    database = ViewDatabase(path, SCHEMA)
+    try:
+        with database.writing() as connection:
+            connection.execute("INSERT INTO facts VALUES (1)")
+        for _ in range(30):  # one burst of load after another, each on threads of its own
+            readers = [threading.Thread(target=values, args=(database,)) for _ in range(4)]
+            for reader in readers:
+                reader.start()
+            for reader in readers:
+                reader.join()
+        assert values(database) == [1]  # a live reader still reads
+        assert open_files(path) <= 8  # the setup, the writer, this thread, and the last burst's, at most
+    finally:
+        database.close()
+    assert open_files(path) == 0

@@ -24,19 +24,20 @@ class ViewDatabase:
         self._writer_lock = threading.Lock()
         self._writer: sqlite3.Connection | None = None
         self._writing_thread: int | None = None  # the thread inside `writing()`, whose nested blocks join it
-        self._connections: list[sqlite3.Connection] = []
-        self._connections_lock = threading.Lock()
+        self._readers: dict[threading.Thread, sqlite3.Connection] = {}
+        self._readers_lock = threading.Lock()
         setup = self._connect()
-        setup.execute("PRAGMA journal_mode=WAL")
-        for statement in schema:
-            setup.execute(statement)
+        try:
+            setup.execute("PRAGMA journal_mode=WAL")
+            for statement in schema:
+                setup.execute(statement)
+        finally:
+            setup.close()
 
     def _connect(self) -> sqlite3.Connection:
         connection = sqlite3.connect(self.path, check_same_thread=False, isolation_level=None, timeout=30)
         connection.execute("PRAGMA busy_timeout=30000")
         connection.execute("PRAGMA synchronous=NORMAL")  # a view is rebuilt from the store if ever lost
-        with self._connections_lock:
-            self._connections.append(connection)
         return connection
 
     def reader(self) -> sqlite3.Connection:
@@ -44,6 +45,12 @@ class ViewDatabase:
         connection = getattr(self._local, "connection", None)
         if connection is None:
             connection = self._local.connection = self._connect()
+            with self._readers_lock:
+                # The server's worker threads end when idle and others start under the next load: the
+                # connections of those that ended are closed here, or each burst would leave its own open.
+                for ended in [thread for thread in self._readers if not thread.is_alive()]:
+                    self._readers.pop(ended).close()
+                self._readers[threading.current_thread()] = connection
         return connection
 
     def writing(self) -> _Writing:
@@ -52,10 +59,12 @@ class ViewDatabase:
         return _Writing(self)
 
     def close(self) -> None:
-        with self._connections_lock:
-            for connection in self._connections:
+        with self._readers_lock:
+            for connection in self._readers.values():
                 connection.close()
-            self._connections.clear()
+            self._readers.clear()
+        if self._writer is not None:
+            self._writer.close()
         if self._temporary is not None:
             shutil.rmtree(self._temporary, ignore_errors=True)
 
