@@ -4,6 +4,7 @@ made it at once, without waiting for their next look. A report page tells where 
 
 from __future__ import annotations
 
+import json
 import threading
 import time
 
@@ -14,7 +15,7 @@ from segb_server.backend.api.routes import live
 from tests.support.live_server import LiveServer
 from tests.support.scenarios import lobby, publish_message
 from tests.support.settle import settle
-from tests.support.streams import first_event
+from tests.support.streams import events_until_quiet, first_event
 
 
 def test_an_unknown_report_is_refused_before_the_stream_opens(memory_api: LiveServer) -> None:
@@ -96,3 +97,20 @@ def test_a_report_page_tells_where_its_stream_resumes(memory_api: LiveServer) ->
     later = httpx.get(f"{memory_api.url}/reports/conversations", timeout=30).json()
     assert later["last_event_id"] >= int(event["id"])
     assert "After the page" in str(later["rows"]) and "After the page" not in str(page["rows"])
+
+
+def test_a_reader_leaving_in_the_middle_of_a_batch_hears_the_rest_when_it_resumes(memory_api: LiveServer) -> None:
+    """One batch of the views can change several reports, sent as one event each: the id to resume from is on
+    the batch's last event only, so a reader that leaves after the first resumes with the others."""
+    lobby().publish_all(memory_api.url)
+    start = httpx.get(f"{memory_api.url}/reports/conversations", timeout=30).json()["last_event_id"]
+    publish_message(memory_api.url, "Heard by several reports at once")
+    settle(memory_api.url)
+    batch = events_until_quiet(f"{memory_api.url}/reports/stream", {"Last-Event-ID": str(start)})
+    changed = [json.loads(event["data"])["report"] for event in batch]
+    assert {"conversations", "participants"} <= set(changed)
+
+    first = batch[0]  # the reader left after this one, and resumes from the last id it was given
+    resumed = events_until_quiet(f"{memory_api.url}/reports/stream", {"Last-Event-ID": first.get("id", str(start))})
+    assert set(changed[1:]) <= {json.loads(event["data"])["report"] for event in resumed}
+    assert "id" in batch[-1] and all("id" not in event for event in batch[:-1])

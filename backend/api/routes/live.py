@@ -1,9 +1,10 @@
 """Server-Sent Events telling readers that a view changed, as the views are kept current from the journal.
 
 `GET /reports/stream` says which reports' rows changed; one stream serves every report (a page showing six
-reports needs one connection). Resumable: an `id` per event, and `Last-Event-ID` on reconnection replays what
-was missed (the last changes are kept; an older id gets a `reset` event: reload). `GET /graph/stream` says
-that the drawable graph changed; a viewer fetches its view again, so a reconnection needs no replay."""
+reports needs one connection). Resumable: an `id` on the last event of each group of changes, and
+`Last-Event-ID` on reconnection replays what was missed (the last changes are kept; an older id gets a
+`reset` event: reload). `GET /graph/stream` says that the drawable graph changed; a viewer fetches its view
+again, so a reconnection needs no replay."""
 
 from __future__ import annotations
 
@@ -32,7 +33,8 @@ MAX_EVENT_ID_DIGITS = 18
     summary="Changes of the reports, live (Server-Sent Events)",
     description=(
         'An `event: change` whenever rows of a report changed, with `data: {"report": name, "units": [...]}` '
-        "(the keys whose rows were replaced) and an increasing `id`; send it back as `Last-Event-ID` to resume. "
+        "(the keys whose rows were replaced); the last event of each group of changes carries an increasing `id`: "
+        "send it back as `Last-Event-ID` to resume. "
         "`?report=` (repeatable) limits the stream to those reports. `event: reset` when the changes since that id "
         "are no longer kept (reload). A comment every 15 s keeps idle connections open. Reports evaluated in full "
         "on every request (see `served_from`) send no changes."
@@ -60,11 +62,15 @@ async def stream(
         if not found:
             return []
         last = found[-1][0]
-        return [
-            f"id: {last}\nevent: change\ndata: "
-            f"{json.dumps({'report': name.removeprefix(f'{FOLDER}/'), 'units': sorted(units)})}\n\n".encode()
-            for name, units in _by_report(found, wanted, served).items()
-        ]
+        grouped = list(_by_report(found, wanted, served).items())
+        events = []
+        for index, (name, units) in enumerate(grouped):
+            # The id on the group's last event only: a reader that leaves in the middle resumes from the previous
+            # id and hears the whole group again, rather than skipping the reports it had not heard yet.
+            position = f"id: {last}\n" if index == len(grouped) - 1 else ""
+            data = json.dumps({"report": name.removeprefix(f"{FOLDER}/"), "units": sorted(units)})
+            events.append(f"{position}event: change\ndata: {data}\n\n".encode())
+        return events
 
     async def opening() -> list[bytes]:
         if resume is None:
