@@ -114,3 +114,20 @@ def test_a_reader_leaving_in_the_middle_of_a_batch_hears_the_rest_when_it_resume
     resumed = events_until_quiet(f"{memory_api.url}/reports/stream", {"Last-Event-ID": first.get("id", str(start))})
     assert set(changed[1:]) <= {json.loads(event["data"])["report"] for event in resumed}
     assert "id" in batch[-1] and all("id" not in event for event in batch[:-1])
+
+
+def test_a_position_ahead_of_the_stream_says_reload_then_follows(memory_api: LiveServer) -> None:
+    """An id the stream has not reached (its rows were built again since the page was read) cannot tell what
+    the reader missed: it is told to reload, and hears the changes that follow."""
+    lobby().publish_all(memory_api.url)
+    newest = httpx.get(f"{memory_api.url}/reports/conversations", timeout=30).json()["last_event_id"]
+    with httpx.stream(
+        "GET", f"{memory_api.url}/reports/stream", headers={"Last-Event-ID": str(newest + 1000)}, timeout=30
+    ) as stream:
+        lines = stream.iter_lines()
+        assert next(lines) == "event: reset"
+        publish_message(memory_api.url, "After the reset")
+        deadline = time.monotonic() + 20  # a keep-alive comment every 15 s gives the loop a turn
+        while not (line := next(lines)).startswith("id:"):
+            assert time.monotonic() < deadline, "no change was announced"
+        assert newest < int(line.split(":", 1)[1]) < newest + 1000

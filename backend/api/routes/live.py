@@ -2,9 +2,9 @@
 
 `GET /reports/stream` says which reports' rows changed; one stream serves every report (a page showing six
 reports needs one connection). Resumable: an `id` on the last event of each group of changes, and
-`Last-Event-ID` on reconnection replays what was missed (the last changes are kept; an older id gets a
-`reset` event: reload). `GET /graph/stream` says that the drawable graph changed; a viewer fetches its view
-again, so a reconnection needs no replay."""
+`Last-Event-ID` on reconnection replays what was missed (the last changes are kept; an older id, or one the
+stream has not reached, gets a `reset` event: reload). `GET /graph/stream` says that the drawable graph
+changed; a viewer fetches its view again, so a reconnection needs no replay."""
 
 from __future__ import annotations
 
@@ -36,8 +36,8 @@ MAX_EVENT_ID_DIGITS = 18
         "(the keys whose rows were replaced); the last event of each group of changes carries an increasing `id`: "
         "send it back as `Last-Event-ID` to resume. "
         "`?report=` (repeatable) limits the stream to those reports. `event: reset` when the changes since that id "
-        "are no longer kept (reload). A comment every 15 s keeps idle connections open. Reports evaluated in full "
-        "on every request (see `served_from`) send no changes."
+        "are no longer kept, or the id is ahead of the stream (reload). A comment every 15 s keeps idle connections "
+        "open. Reports evaluated in full on every request (see `served_from`) send no changes."
     ),
     response_class=StreamingResponse,
     responses={200: {"content": {"text/event-stream": {}}}},
@@ -73,10 +73,16 @@ async def stream(
         return events
 
     async def opening() -> list[bytes]:
+        nonlocal last
         if resume is None:
             return []
-        oldest = await anyio.to_thread.run_sync(rows.oldest_change)
-        return [b"event: reset\ndata: {}\n\n"] if last < oldest - 1 else []
+        oldest, newest = await anyio.to_thread.run_sync(lambda: (rows.oldest_change(), rows.last_change()))
+        if oldest - 1 <= last <= newest:
+            return []
+        # Changes no longer kept, or a position these rows never reached (built again since the reader's page
+        # was read): what was missed is unknown, so the reader reloads, and hears what follows from now on.
+        last = min(last, newest)
+        return [b"event: reset\ndata: {}\n\n"]
 
     return _event_stream(request, opening, changes, rows.changed)
 
