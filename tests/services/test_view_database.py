@@ -93,7 +93,9 @@ def test_the_connections_of_reader_threads_that_ended_are_closed(tmp_path: Path)
             for reader in readers:
                 reader.join()
         assert values(database) == [1]  # a live reader still reads
-        assert open_files(path) <= 8  # the setup, the writer, this thread, and the last burst's, at most
+        # Bounded by the threads reading at once, not by the bursts (120 connections before the fix): SQLite
+        # holds a closed connection's descriptor for reuse while others lock the file, hence a small margin.
+        assert open_files(path) <= 16
     finally:
         database.close()
     assert open_files(path) == 0
