@@ -85,7 +85,7 @@ def create_app(settings: Settings | None = None, store: Store | None = None, *, 
         monitor = StoreMonitor(
             active_store, max_retry_seconds=settings.store_retry_max_seconds, check_seconds=settings.store_check_seconds
         )
-        app.state.services.start()
+        await anyio.to_thread.run_sync(app.state.services.start)  # reads the store's cursor: I/O
         if demo:
             # The app's own services: with STORE=memory the journal and resolver exist nowhere else.
             await anyio.to_thread.run_sync(load_demo, app.state.services)

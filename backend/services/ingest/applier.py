@@ -70,7 +70,11 @@ class Applier:
         self.store = store
         self.leadership = leadership or Leadership(None)
         self.batch_triples = batch_triples
-        self._applied: int | None = None  # None: to be read from the store
+        self._applied = 0  # the entry the store is known to be applied through
+        # Whether `_applied` is the store's own cursor, read since start or the last outage; until it is, the
+        # leader reads it before applying (the store may come back restored or wiped). What was last known
+        # stays meanwhile: the backlog and the lag count from it, not from the journal's first entry.
+        self._cursor_read = False
         self._apply_lock = threading.Lock()
         self._progress = threading.Condition()
         self._wake = threading.Event()
@@ -82,6 +86,16 @@ class Applier:
     # --- the background thread ---------------------------------------------------------------------
 
     def start(self) -> None:
+        """Read how far the store is applied, then apply in the background: from the first request on, the lag
+        and the backlog are the store's (a store that does not answer yet is read by the thread later)."""
+        try:
+            if self.leadership.try_acquire():
+                with self._apply_lock:
+                    self._read_cursor()
+            else:
+                self._follow()
+        except OUTAGES as error:
+            self.last_error = str(error)
         self._thread = threading.Thread(target=self._run, name="segb-applier", daemon=True)
         self._thread.start()
 
@@ -124,7 +138,7 @@ class Applier:
     @property
     def applied(self) -> int:
         """The entry the store is known to be applied through (0 until first read)."""
-        return self._applied or 0
+        return self._applied
 
     def apply_pending(self) -> int:
         """Apply every entry the journal holds beyond the store's cursor; returns the cursor. Raises
@@ -134,13 +148,12 @@ class Applier:
             return self._follow()
         with self._apply_lock:
             try:
-                if self._applied is None:
-                    self._applied = self._starting_point()
+                self._read_cursor()
                 while entries := self.journal.entries_after(self._applied, ENTRIES_PER_READ):
                     for step in self._steps(entries):
                         self._apply(step)
             except OUTAGES as error:
-                self._applied = None  # the store may come back restored or wiped: read its cursor again
+                self._cursor_read = False  # the store may come back restored or wiped: read its cursor again
                 self.last_error = str(error)
                 raise
             self.last_error = None
@@ -189,6 +202,11 @@ class Applier:
             self._follow()
         except OUTAGES as error:
             self.last_error = str(error)
+
+    def _read_cursor(self) -> None:
+        """The leader, under `_apply_lock`: once after start and after each outage, the store's own cursor."""
+        if not self._cursor_read:
+            self._applied, self._cursor_read = self._starting_point(), True
 
     def _starting_point(self) -> int:
         cursor = self.store.applied_through()
