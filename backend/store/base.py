@@ -63,6 +63,9 @@ class Store(Protocol):
     wraps_values: bool
     # Queries wait on the network (a SPARQL server), not on this process's cores: several at once finish sooner.
     remote: bool
+    # The most rows the store sorts for one answer with a LIMIT, OFFSET included (Virtuoso's MaxSortedTopRows:
+    # past it, error SR353); None when there is no such bound. A deeper page is read from the answer in full.
+    max_sorted_rows: int | None
 
     def ping(self) -> None:
         """Raise StoreUnavailable unless the store answers a trivial query."""

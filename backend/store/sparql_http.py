@@ -41,6 +41,7 @@ class SparqlHttpStore:
 
     kind = "sparql"
     wraps_values = False
+    max_sorted_rows: int | None = None
     remote = True
     # How SELECT and ASK answers are asked for and read: JSON, which every SPARQL 1.1 store writes.
     results_media_type = RESULTS_JSON

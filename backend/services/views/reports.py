@@ -15,7 +15,6 @@ from segb_server.backend.services.views.term_values import JsonValue, json_value
 from segb_server.backend.store.base import Bindings, Store, select
 
 FOLDER = "reports"
-SORT_LIMIT = 10_000  # rows a store sorts for one answer (Virtuoso's MaxSortedTopRows)
 DEFAULT_LIMIT = 1000
 MAX_LIMIT = 10_000
 
@@ -141,13 +140,20 @@ class ReportService:
         return self.cache.get(key, lambda: self._compute(query, bindings, limit, offset))
 
     def _compute(self, query: CatalogQuery, bindings: Bindings, limit: int, offset: int) -> ReportTable:
-        # One row past the page tells whether another page exists without counting the whole result; Virtuoso
-        # sorts at most 10,000 rows, so a page of the largest size is asked as is and counts as full when full.
-        asked = min(limit + 1, SORT_LIMIT)
-        result = select(self.store, paged(query.text, asked, offset), bindings)
-        rows = [{column: json_value(row.get(column)) for column in result.columns} for row in result.rows[:limit]]
-        more = len(result.rows) > limit or (asked == limit and len(result.rows) == limit)
-        return ReportTable(query, result.columns, rows, limit, offset, more)
+        # One row past the page tells whether another page exists without counting the whole result.
+        wanted = limit + 1
+        sorted_rows = self.store.max_sorted_rows
+        if sorted_rows is None or offset + wanted <= sorted_rows:
+            result = select(self.store, paged(query.text, wanted, offset), bindings)
+            window = result.rows
+        else:
+            # Past what the store sorts for a LIMIT (Virtuoso: SR353), the page is cut from the whole answer,
+            # which the store sorts without that bound. Only reports evaluated in full come here, and only
+            # for their deep pages.
+            result = select(self.store, query.text, bindings)
+            window = result.rows[offset : offset + wanted]
+        rows = [{column: json_value(row.get(column)) for column in result.columns} for row in window[:limit]]
+        return ReportTable(query, result.columns, rows, limit, offset, len(window) > limit)
 
 
 def short_name(query: CatalogQuery) -> str:
