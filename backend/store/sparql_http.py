@@ -197,6 +197,10 @@ class SparqlHttpStore:
         SPARQL 1.1; subclasses add their store's own)."""
         return {}
 
+    def _refuses_the_query(self, message: str) -> bool:
+        """Whether an error answer other than a 400 blames the query itself (subclasses know their store's)."""
+        return False
+
     def _timed_out(self, response: httpx.Response) -> bool:
         """Whether a successful answer says the store stopped the query at its time limit."""
         return False
@@ -237,7 +241,7 @@ class SparqlHttpStore:
         if response.status_code < 400:
             return
         text = self._summary(response.text)
-        if response.status_code == 400:
+        if response.status_code == 400 or self._refuses_the_query(text):
             raise StoreRejectedQuery(text)
         if response.status_code in (401, 403):
             raise StoreError(f"{self.kind} refused the server's credentials (HTTP {response.status_code})")

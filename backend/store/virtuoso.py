@@ -43,6 +43,10 @@ class VirtuosoStore(SparqlHttpStore):
     def _timeout_params(self, timeout: float) -> dict[str, str]:
         return {"timeout": str(max(1, round(timeout * 1000)))}  # milliseconds ("anytime" queries)
 
+    def _refuses_the_query(self, message: str) -> bool:
+        # A 500 all the same: a sorted LIMIT (offset included) past the rows it sorts, MaxSortedTopRows.
+        return "SR353" in message
+
     def _timed_out(self, response: httpx.Response) -> bool:
         # An "anytime" answer is a 200 holding what was found before the time ran out, flagged by this state.
         return response.headers.get("x-sql-state") == "S1TAT"

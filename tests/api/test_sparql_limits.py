@@ -107,6 +107,24 @@ def test_a_query_past_the_time_limit_is_stopped_with_503(store: Store) -> None:
     assert after.status_code == 200 and after.json()["boolean"] is True  # the store is fine afterwards
 
 
+def test_a_sorted_page_past_what_the_store_sorts_is_refused_by_name(store: Store) -> None:
+    """Virtuoso sorts at most 10,000 rows for an answer with a LIMIT (offset included): such a user query is the
+    user's to change, so it is a 400 saying why, not a 502 as if the store had failed."""
+    fill(store, 30)
+    for server in serve(store):
+        within = get(server.url, "/sparql", EVERYTHING + " LIMIT 10000")
+        beyond = get(server.url, "/sparql", EVERYTHING + " LIMIT 5000 OFFSET 5001")
+    assert within.status_code == 200 and len(within.json()["results"]["bindings"]) == 30
+    if store.max_sorted_rows is None:
+        assert beyond.status_code == 200, beyond.text[:300]
+        assert beyond.json()["results"]["bindings"] == []
+    else:
+        assert beyond.status_code == 400, beyond.text[:300]
+        body = beyond.json()
+        assert body["error"] == "invalid_query", body
+        assert "10000" in body["detail"] and "offset" in body["detail"], body
+
+
 @pytest.mark.virtuoso
 def test_virtuoso_stops_an_aggregate_at_the_time_limit(virtuoso) -> None:  # type: ignore[no-untyped-def]
     """An aggregate yields no row before it is done: Virtuoso's own limit (its `timeout` parameter) stops it."""
