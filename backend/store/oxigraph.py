@@ -32,7 +32,7 @@ class OxigraphStore:
     which is most of the per-triple cost of a re-publish. Other named graphs stay free for server data."""
 
     wraps_values = False
-    max_sorted_rows = None
+    max_sorted_rows: int | None = None
     remote = False
 
     def __init__(self, graph_uri: str, path: Path | None = None) -> None:

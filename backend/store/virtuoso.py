@@ -14,7 +14,7 @@ class VirtuosoStore(SparqlHttpStore):
 
     kind = "virtuoso"
     wraps_values = True
-    max_sorted_rows = 10_000  # its default MaxSortedTopRows
+    max_sorted_rows: int | None = 10_000  # its default MaxSortedTopRows
     # Virtuoso 7 writes XML answers five times faster than JSON ones (2,000 rows: 30 ms against 168 ms,
     # docs/performance.md), and the views' upkeep and explanations read many rows. Its XML writer ends a
     # literal at a U+0000 character, which XML cannot hold; the journal keeps such a literal whole.
