@@ -54,12 +54,13 @@ class Profile:
     report_repeats: int
     steady_seconds: float  # how long one robot posts at LIVE_RATE for the apply lag
     live_posts: int  # posts ready for the robot publishing while reports are measured (it stops when they run out)
+    browser_seconds: float  # how long its conversations are watched in Chromium, before the pages are measured
 
 
 PROFILES = {
-    "tiny": Profile(30, 4, 6, 8, (2_000,), 3, 2, 60),
-    "quick": Profile(300, 16, 100, 100, (100_000,), 20, 20, 3_000),
-    "full": Profile(2_000, 16, 200, 1_000, (100_000, 1_000_000), 30, 20, 6_000),
+    "tiny": Profile(30, 4, 6, 8, (2_000,), 3, 2, 60, 2),
+    "quick": Profile(300, 16, 100, 100, (100_000,), 20, 20, 3_000, 10),
+    "full": Profile(2_000, 16, 200, 1_000, (100_000, 1_000_000), 30, 20, 6_000, 10),
 }
 BREAKDOWN_POSTS = 300
 SECTIONS = ("small", "robots", "workers", "steady", "cumulative", "reports")
@@ -200,7 +201,7 @@ def run_embedded(profile: Profile, loads: Loads, root: Path, figures: Figures, s
         load_seconds = segb_import("oxigraph", data_dir, files)
         with segb_server("oxigraph", data_dir) as server:
             measured = live_reports(server, count_lines(files), load_seconds, profile.report_repeats, loads.live,
-                                    LIVE_RATE)  # fmt: skip
+                                    LIVE_RATE, profile.browser_seconds)  # fmt: skip
         figures.live[(label, size)] = measured
         figures.peak_rss_mib[(f"API process, {label}", size)] = measured.peak_rss_mib
 
@@ -325,7 +326,7 @@ def run_virtuoso(profile: Profile, loads: Loads, root: Path, figures: Figures, s
             load_seconds = segb_import("virtuoso", data_dir, files, {**settings, "INGEST_ACK": "store"})
             with segb_server("virtuoso", data_dir, settings) as server:
                 measured = live_reports(server, count_lines(files), load_seconds, profile.report_repeats,
-                                        loads.live, LIVE_RATE)  # fmt: skip
+                                        loads.live, LIVE_RATE, profile.browser_seconds)  # fmt: skip
             figures.live[(label, size)] = measured
             figures.peak_rss_mib[(f"API process, {label}", size)] = measured.peak_rss_mib
             figures.peak_rss_mib[("virtuoso-t (whole run so far)", size)] = _virtuoso_rss(virtuoso)

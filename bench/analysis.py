@@ -192,6 +192,13 @@ LIVE_INTRO = [
     "is skipped, not timed late). The time is from the post's 201 to that page holding its messages. Filters",
     "come from the data: the first participant pair, and a one-day window from the first message's time.",
     "Each row of the pages table is the same request repeated; default page size 1,000 rows.",
+    "",
+    "Before the pages are measured, the robot's conversations are watched the whole way, in a real page:",
+    "the web UI (`segb serve --only ui`) serves `/reports/conversations?robot=…` to headless Chromium with live",
+    "updates on, and a script in the page notes when each message first shows (its bubble's explain link). The",
+    "time is from a post's 201 to the last of its messages showing, for every post with messages answered while",
+    "the page was watched (*open page in Chromium*): the views, the API's stream, the UI's relay, the page's",
+    "script fetching its rows again, and the browser drawing them.",
 ]
 
 

@@ -18,11 +18,12 @@ from typing import Any
 import httpx
 from tqdm import tqdm
 
+from bench.browser import InPage, watch_conversations
 from bench.client import BenchError, Client
 from bench.crosscheck import rows_of_query
 from bench.measure import Latency
 from bench.probes import LagFigures, ReadinessProbe, wait_caught_up
-from bench.server import ServerProcess
+from bench.server import ServerProcess, ui_server
 from bench.workloads import LivePost, robot_of
 
 POLL_SECONDS = 0.02
@@ -58,6 +59,8 @@ class Background:
     latencies: list[float] = field(default_factory=list)
     visible: list[float] = field(default_factory=list)  # 201 to the post's messages in the conversations report
     not_visible: int = 0
+    # The posts with messages as they were answered: (their message IRIs, `time.time()` at the 201).
+    answered: list[tuple[tuple[str, ...], float]] = field(default_factory=list)
 
     @property
     def rate(self) -> float:
@@ -76,6 +79,7 @@ class LiveReports:
     background: Background
     lag: LagFigures
     peak_rss_mib: float | None
+    in_page: InPage | None = None  # the robot's messages into its conversations open in Chromium
 
 
 @dataclass(frozen=True)
@@ -90,15 +94,26 @@ class Samples:
 
 
 def live_reports(
-    server: ServerProcess, triples: int, load_seconds: float, repeats: int, posts: list[LivePost], rate: float
+    server: ServerProcess,
+    triples: int,
+    load_seconds: float,
+    repeats: int,
+    posts: list[LivePost],
+    rate: float,
+    browser_seconds: float,
 ) -> LiveReports:
+    """`browser_seconds`: how long the robot's conversations are watched in Chromium first (before the pages are
+    measured, so the browser's load is not in their figures)."""
     rows_seconds = wait_for_rows(server)
     with httpx.Client(base_url=server.url, timeout=600) as client:
         samples = sample_values(client)
         background = Background()
+        robot = robot_of(posts[0].payload)
         with ReadinessProbe(server.url, interval=0.2) as probe, publishing(server.url, posts, rate, background):
+            with ui_server(server.url) as ui:
+                in_page = watch_conversations(ui.url, robot, background.answered, browser_seconds)
             pages = measure_pages(client, samples, repeats)
-            views = measure_views(client, samples, robot_of(posts[0].payload), VIEW_REPEATS)
+            views = measure_views(client, samples, robot, VIEW_REPEATS)
         lag = LagFigures.of(probe.samples, wait_caught_up(server.url))
     return LiveReports(
         triples=triples,
@@ -111,6 +126,7 @@ def live_reports(
         background=background,
         lag=lag,
         peak_rss_mib=server.peak_rss_mib,
+        in_page=in_page,
     )
 
 
@@ -335,6 +351,7 @@ def _post(
             into.latencies.append(answered - begin)
             into.posts += 1
             if post.messages:
+                into.answered.append((post.messages, time.time()))
                 pending.put((post, answered))
         into.seconds = time.perf_counter() - started
 

@@ -289,7 +289,21 @@ def _live_section(f: Figures) -> list[str]:
         ],
         [_background_row(store, size, live) for (store, size), live in f.live.items()],
     )
+    lines += ["**The robot's conversations open in Chromium** (201 to its messages shown in the page)", ""]
+    lines += table(
+        ["store", "triples", "posts watched", "p50 / p95 / p99 / max ms", "never shown", "not watched because"],
+        [_in_page_row(store, size, live) for (store, size), live in f.live.items()],
+    )
     return lines + analysis.live_notes(f.live)
+
+
+def _in_page_row(store: str, size: int, live: LiveReports) -> list[str]:
+    watched = live.in_page
+    if watched is None:
+        return [store, f"{size:,}", "-", "-", "-", "not measured in this run"]
+    shown = watched.shown
+    figures = f"{shown.p50:.0f} / {shown.p95:.0f} / {shown.p99:.0f} / {shown.max:.0f}" if shown else "-"
+    return [store, f"{size:,}", str(watched.posts), figures, str(watched.never_shown), watched.failure or "-"]
 
 
 def _background_row(store: str, size: int, live: LiveReports) -> list[str]:

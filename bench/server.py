@@ -131,3 +131,10 @@ def null_server() -> ServerProcess:
     """bench/null_server.py: answers every POST at once, for the client's own share of the latency."""
     port = free_port()
     return ServerProcess(["-m", "bench.null_server", "--port", str(port)], {}, port, ready_path="/healthz/live")
+
+
+def ui_server(api_url: str) -> ServerProcess:
+    """The web UI (`segb serve --only ui`) on a free port, reaching the API at `api_url`."""
+    port = free_port()
+    argv = ["-m", "segb_server.backend.cli", "serve", "--only", "ui", "--backend-url", api_url, "--ui-port", str(port)]
+    return ServerProcess(argv, {"SECRET_KEY": "", "LOGGING_LEVEL": "WARNING"}, port, ready_path="/health")

@@ -123,6 +123,16 @@ def _live(store: str, size: int, live: LiveReports) -> list[Row]:
         f"{live.background.not_visible} never" if visible else "nothing measured",
         verdict(visible is not None and visible.p99 <= 1000 and not live.background.not_visible),
     ])  # fmt: skip
+    if live.in_page is not None:
+        shown = live.in_page.shown
+        rows.append([
+            f"a post's message in an open conversations page (Chromium) ≤ 1 s after its 201, {store}, {size:,} "
+            "triples (p99)",
+            f"p50 {shown.p50:.0f} ms, p99 {shown.p99:.0f} ms, max {shown.max:.0f} ms, "
+            f"{live.in_page.never_shown} never of {live.in_page.posts}" if shown
+            else live.in_page.failure or "nothing measured",
+            verdict(shown is not None and shown.p99 <= 1000 and not live.in_page.never_shown),
+        ])  # fmt: skip
     return rows
 
 

@@ -17,6 +17,7 @@ from segb_server.backend.config import Settings
 from segb_server.backend.store.base import Store
 from segb_server.backend.store.oxigraph import OxigraphStore
 from segb_server.backend.store.virtuoso import VirtuosoStore
+from tests.support.browser import CHROMIUM, CHROMIUM_ARGS
 from tests.support.live_server import LiveServer
 from tests.support.postgres import PostgresProcess
 from tests.support.virtuoso import VirtuosoProcess
@@ -144,16 +145,6 @@ def memory_api(memory_store: Store) -> Iterator[LiveServer]:
 # Screenshots of every browser test's final state, kept as evidence outside the working tree
 # (SEGB_TEST_ARTIFACTS chooses where; by default a temporary directory that the run prints).
 ARTIFACTS = Path(os.environ.get("SEGB_TEST_ARTIFACTS") or tempfile.mkdtemp(prefix="segb-test-artifacts-"))
-CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_ARGS = [
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-]
 
 
 class UiStack:

@@ -40,6 +40,9 @@ def test_tiny_profile_writes_a_report_with_measured_figures(tmp_path: Path) -> N
     # The robot's messages were heard of on the live stream and seen as rows, every time one was checked.
     live = re.search(r"\| embedded \| 2,000 \| \d+ \| [\d.]+ \| [^|]+ \| 0 \| [\d.]+ / [\d.]+ \| (\d+) \| 0 \|", report)
     assert live is not None and int(live.group(1)) > 0, report
+    # And in a real page: the robot's conversations open in Chromium showed every post watched.
+    in_page = re.search(r"\| embedded \| 2,000 \| (\d+) \| [\d ./]+ \| 0 \| - \|", report)
+    assert in_page is not None and int(in_page.group(1)) > 0, report
     assert re.search(r"\| embedded \| 8 \| [\d.]+ \| [\d.]+ \| 1095 \|", report)  # the journal's size, measured
     assert re.search(r"\| API process, embedded \| 2,000 \| \d+ \|", report)
     # Nothing lost: the embedded store's export holds exactly the distinct triples the robots sent.
