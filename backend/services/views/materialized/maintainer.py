@@ -110,9 +110,7 @@ class ReportProjection:
         # The query whose answer the rows are (for an aggregate: before grouping), parameters left unbound.
         self.text = bind_values(text, {PARAMETER_VARIABLE_PREFIX + p: None for p in layout.parameters})
         self.keys = KeyFinder(plan, unit, ignored=_facet_patterns(plan))
-        self.facet_keys = [
-            (facet, KeyFinder(_facet_plan(plan, facet), facet.anchor[1:])) for facet in plan.facet_filters
-        ]
+        self.facets = [FacetPairs(plan, facet) for facet in plan.facet_filters]
 
     def stored_through(self) -> int | None:
         fingerprint, through = self.rows.state(self.name)
@@ -132,9 +130,8 @@ class ReportProjection:
         self.rows.create(self.layout, fresh=True)
         rows = self._evaluate(None)
         self.rows.replace(self.layout, rows, rows, through)
-        for facet in self.layout.plan.facet_filters:
-            pairs = self._facet_pairs(facet, None)
-            self.rows.replace_facets(self.layout, facet.parameter, sorted({anchor for anchor, _ in pairs}), pairs)
+        for delta in self.facets:
+            self.rows.add_facets(self.layout, delta.facet.parameter, delta.all_pairs(self.store))
         self.rows.set_state(self.name, self.fingerprint, through)
         logger.info("report %s built: %d keys", self.name, len(rows))
 
@@ -147,19 +144,16 @@ class ReportProjection:
         # store are updated side by side, and take turns only for writing.
         replaced: list[str] = []
         rows: dict[str, list[Row]] = {}
-        facets: list[tuple[FacetFilter, list[str], list[tuple[str, str]]]] = []
+        facets: list[tuple[FacetFilter, list[tuple[str, str]]]] = []
         if quads:
             replaced = sorted(self.keys.units(quads, self.store))
             rows = self._evaluate(replaced) if replaced else {}
-            for facet, finder in self.facet_keys:
-                anchors = sorted(finder.units(quads, self.store))
-                if anchors:
-                    facets.append((facet, anchors, self._facet_pairs(facet, anchors)))
+            facets = [(delta.facet, pairs) for delta in self.facets if (pairs := delta.new_pairs(quads, self.store))]
         with self.rows.db.writing():
             if replaced:
                 self.rows.replace(self.layout, replaced, rows, through)
-            for facet, anchors, pairs in facets:
-                self.rows.replace_facets(self.layout, facet.parameter, anchors, pairs)
+            for facet, pairs in facets:
+                self.rows.add_facets(self.layout, facet.parameter, pairs)
             if quads:
                 self.rows.prune_changes(CHANGES_KEPT)
             self.rows.set_state(self.name, self.fingerprint, through)
@@ -184,24 +178,53 @@ class ReportProjection:
                     grouped.setdefault(term_text(unit), []).append(row)
         return grouped
 
-    def _facet_pairs(self, facet: FacetFilter, anchors: list[str] | None) -> list[tuple[str, str]]:
-        """The facet's (anchor, value) pairs: for `anchors`, or (None) for every anchor in the store."""
-        variable = PARAMETER_VARIABLE_PREFIX + facet.parameter
-        selected = f"SELECT DISTINCT {facet.anchor} ?{variable}"
-        chunks: list[list[str] | None] = [None] if anchors is None else _slices(anchors, VALUES_PER_QUERY)
-        pairs: list[tuple[str, str]] = []
-        # One query per EXISTS body, the anchors' VALUES beside its patterns: inside a UNION branch they would
-        # not bind the branch, which would then be evaluated for every anchor in the store.
-        for chunk in chunks:
-            values = "" if chunk is None else f"VALUES {facet.anchor} {{ {' '.join(chunk)} }} "
-            for body in facet.bodies:
-                patterns = " ".join(p.sparql() for p in body)
-                query = f"{selected} WHERE {{ {values}{_narrowing(self.layout.plan, body)}{patterns} }}"
-                for row in select(self.store, query).rows:
-                    anchor, value = row.get(facet.anchor[1:]), row.get(variable)
-                    if anchor is not None and value is not None:
-                        pairs.append((term_text(anchor), term_text(value)))
-        return pairs
+
+class FacetPairs:
+    """The (anchor, value) pairs of a facet filter that new triples add. A facet's EXISTS bodies are joins of
+    triple patterns with no negation, so its pairs only grow as triples arrive: the new ones are those where a
+    new triple matches one of a body's patterns, found by binding that pattern to the triple and joining the
+    rest of the body (the delta rule). A post's cost is what its own triples join with, never every pair of the
+    anchor they reach (a robot's: every activity it ever performed)."""
+
+    def __init__(self, plan: ReportPlan, facet: FacetFilter) -> None:
+        self.plan = plan
+        self.facet = facet
+        self.parameter = f"?{PARAMETER_VARIABLE_PREFIX}{facet.parameter}"
+        self._patterns: dict[str, list[tuple[Pattern, tuple[Pattern, ...]]]] = {}
+        for body in facet.bodies:
+            for pattern in body:
+                for predicate in pattern.predicates:
+                    self._patterns.setdefault(predicate, []).append((pattern, body))
+
+    def all_pairs(self, store: Store) -> list[tuple[str, str]]:
+        """Every pair in the store (one query per EXISTS body)."""
+        return sorted({pair for body in self.facet.bodies for pair in self._pairs(store, body, "")})
+
+    def new_pairs(self, quads: list[Quad], store: Store) -> list[tuple[str, str]]:
+        """The pairs in which one of `quads` (just added to the store) takes part."""
+        matched: dict[tuple[Pattern, tuple[Pattern, ...]], list[Quad]] = {}
+        for quad in quads:
+            for pattern, body in self._patterns.get(quad.predicate.value, ()):
+                if _fits(self.plan, pattern, quad):
+                    matched.setdefault((pattern, body), []).append(quad)
+        pairs: set[tuple[str, str]] = set()
+        for (pattern, body), matches in matched.items():
+            names = sorted(pattern.variables())
+            rows = sorted({tuple(term_text(_bind(pattern, quad)[name]) for name in names) for quad in matches})
+            for start in range(0, len(rows), VALUES_PER_QUERY):
+                values = " ".join("(" + " ".join(row) + ")" for row in rows[start : start + VALUES_PER_QUERY])
+                pairs.update(self._pairs(store, body, f"VALUES ({' '.join(names)}) {{ {values} }} "))
+        return sorted(pairs)
+
+    def _pairs(self, store: Store, body: tuple[Pattern, ...], values: str) -> set[tuple[str, str]]:
+        patterns = " ".join(pattern.sparql() for pattern in body)
+        where = f"{values}{_narrowing(self.plan, body)}{patterns}"
+        found = set()
+        for row in select(store, f"SELECT DISTINCT {self.facet.anchor} {self.parameter} WHERE {{ {where} }}").rows:
+            anchor, value = row.get(self.facet.anchor[1:]), row.get(self.parameter[1:])
+            if anchor is not None and value is not None:
+                found.add((term_text(anchor), term_text(value)))
+        return found
 
 
 class KeyFinder:
@@ -364,22 +387,6 @@ def _facet_patterns(plan: ReportPlan) -> frozenset[Pattern]:
     """The patterns of facet filters' EXISTS bodies: they decide which rows a filter keeps (the facets table),
     never what a row holds."""
     return frozenset(pattern for facet in plan.facet_filters for body in facet.bodies for pattern in body)
-
-
-def _facet_plan(plan: ReportPlan, facet: FacetFilter) -> ReportPlan:
-    """A plan whose patterns are a facet's EXISTS bodies, to find the anchors new triples touch."""
-    patterns = [pattern for body in facet.bodies for pattern in body]
-    groups = {pattern.group for pattern in patterns}
-    return ReportPlan(
-        name=plan.name,
-        key=(facet.anchor,),
-        columns=[facet.anchor],
-        order=[],
-        patterns=patterns,
-        guaranteed={group: {group} for group in groups},
-        mandatory={group: [p for p in patterns if p.group == group] for group in groups},
-        narrowed=plan.narrowed,
-    )
 
 
 def _narrowing(plan: ReportPlan, body: tuple[Pattern, ...]) -> str:

@@ -84,6 +84,11 @@ class Layout:
             # The whole sort key: a filtered page is sorted from this index alone (see `page`).
             statements.append(f"CREATE INDEX IF NOT EXISTS {self.table}_{sql} ON {self.table} ({sql}, ord, unit, n)")
         if self.plan.is_aggregate:
+            for index, aggregate in enumerate(self.plan.aggregates):
+                if aggregate.function != "count":  # a group's extreme is read from its index (`_regroup`)
+                    statements.append(
+                        f"CREATE INDEX IF NOT EXISTS {self.table}_g{index} ON {self.table} (ord, g_{index})"
+                    )
             values = ", ".join(f"v_{i}" for i in range(len(self.plan.aggregates)))
             statements.append(
                 f"CREATE TABLE IF NOT EXISTS {self.table}_groups (ord TEXT PRIMARY KEY, row TEXT, {values}) "
@@ -182,33 +187,27 @@ class ReportRows:
         units = list(units)
         placeholders = ", ".join(["?"] * layout.column_count)
         records = [layout.record(unit, index, row) for unit in units for index, row in enumerate(rows.get(unit, []))]
-        groups = {str(record[2]) for record in records}  # the groups the new rows join, and (below) those they leave
+        joined = {(str(record[2]), str(record[0])) for record in records}  # (group, unit): the groups units join
+        left: set[tuple[str, str]] = set()  # and (below) those they were in
         with self.db.writing() as connection:
             for chunk in _chunks(units):
                 marks = ", ".join(["?"] * len(chunk))
                 if layout.plan.is_aggregate:
-                    groups.update(
-                        row[0] for row in connection.execute(f"SELECT ord FROM {layout.table} WHERE unit IN ({marks})",
-                                                             chunk)
-                    )  # fmt: skip
+                    left.update(
+                        connection.execute(f"SELECT ord, unit FROM {layout.table} WHERE unit IN ({marks})", chunk)
+                    )
                 connection.execute(f"DELETE FROM {layout.table} WHERE unit IN ({marks})", chunk)
             connection.executemany(f"INSERT INTO {layout.table} VALUES ({placeholders})", records)
             if layout.plan.is_aggregate:
-                _regroup(connection, layout, sorted(groups))
+                _regroup(connection, layout, left, joined)
             connection.executemany(
                 "INSERT INTO report_changes (report, unit, through) VALUES (?, ?, ?)",
                 [(layout.plan.name, unit, through) for unit in units],
             )
 
-    def replace_facets(
-        self, layout: Layout, parameter: str, anchors: Sequence[str], pairs: list[tuple[str, str]]
-    ) -> None:
+    def add_facets(self, layout: Layout, parameter: str, pairs: list[tuple[str, str]]) -> None:
+        """A facet's pairs only grow as triples arrive (a clearing empties them with the rest)."""
         with self.db.writing() as connection:
-            for chunk in _chunks(anchors):
-                marks = ", ".join(["?"] * len(chunk))
-                connection.execute(
-                    f"DELETE FROM {layout.table}_facets WHERE param = ? AND anchor IN ({marks})", [parameter, *chunk]
-                )
             connection.executemany(
                 f"INSERT OR IGNORE INTO {layout.table}_facets VALUES (?, ?, ?)",
                 [(parameter, value, anchor) for anchor, value in pairs],
@@ -332,16 +331,41 @@ class ReportRows:
         self.db.close()
 
 
-def _regroup(connection: Any, layout: Layout, groups: Sequence[str]) -> None:
-    """Compute the kept aggregates of `groups` again from their contributions (a group left without any goes)."""
-    for chunk in _chunks(groups):
-        marks = ", ".join(["?"] * len(chunk))
-        connection.execute(f"DELETE FROM {layout.table}_groups WHERE ord IN ({marks})", chunk)
-        connection.execute(
-            f"INSERT INTO {layout.table}_groups SELECT {layout.grouped()} FROM {layout.table} WHERE ord IN ({marks}) "
-            "GROUP BY ord",
-            chunk,
-        )
+def _regroup(connection: Any, layout: Layout, left: set[tuple[str, str]], joined: set[tuple[str, str]]) -> None:
+    """Bring the kept aggregates of the groups units `left` and `joined` ((group, unit) pairs) up to their
+    contributions, in what these touch rather than in every contribution of a group: a group that grows
+    without end (a robot and the one person it meets every day) costs a post the same at its first
+    contribution and its millionth. The count of distinct units moves by the units that joined or left;
+    a minimum, maximum or sample is read from the group's index on its argument; a group's row (its group
+    columns) is any of its contributions'. A group left without contributions goes."""
+    plan = layout.plan
+    moved: dict[str, int] = {}
+    for group, _ in joined - left:
+        moved[group] = moved.get(group, 0) + 1
+    for group, _ in left - joined:
+        moved[group] = moved.get(group, 0) - 1
+    # The count of distinct units (what the report counts its contributions by) moves; others are read.
+    counted = next(i for i, a in enumerate(plan.aggregates) if a.function == "count" and a.distinct)
+    table, groups = layout.table, f"{layout.table}_groups"
+    values = ", ".join(f"v_{i}" for i in range(len(plan.aggregates)))
+    for group in sorted({group for group, _ in left | joined}):
+        sample = connection.execute(f"SELECT row FROM {table} WHERE ord = ? LIMIT 1", (group,)).fetchone()
+        if sample is None:
+            connection.execute(f"DELETE FROM {groups} WHERE ord = ?", (group,))
+            continue
+        kept = connection.execute(f"SELECT v_{counted} FROM {groups} WHERE ord = ?", (group,)).fetchone()
+        aggregates: list[object] = []
+        for index, aggregate in enumerate(plan.aggregates):
+            if index == counted:
+                aggregates.append((int(kept[0]) if kept else 0) + moved.get(group, 0))
+                continue
+            # MIN serves SAMPLE (any value will do), from the group's index on the argument like MIN and MAX
+            function = _sql_aggregate(aggregate.function, aggregate.distinct, f"g_{index}")
+            found = connection.execute(f"SELECT {function} FROM {table} WHERE ord = ?", (group,)).fetchone()
+            aggregates.append(found[0])
+        marks = ", ".join("?" * (2 + len(aggregates)))
+        connection.execute(f"INSERT OR REPLACE INTO {groups} (ord, row, {values}) VALUES ({marks})",
+                           [group, sample[0], *aggregates])  # fmt: skip
 
 
 def _chunks(items: Sequence[str], size: int = 500) -> Iterable[Sequence[str]]:
