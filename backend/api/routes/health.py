@@ -44,9 +44,9 @@ async def live() -> ProbeResponse:
         'store answers, 503 with `"ready": false` (and a `detail`) when it does not or when the journal\'s disk '
         'is full (`"journal": false`). The store kind is `virtuoso`, `oxigraph`, `memory` or `sparql`, so on '
         'the Virtuoso stack the body is `{"ready": true, "virtuoso": true}`. While the store has journal entries '
-        'to apply, `"apply_lag": {"entries", "seconds"}` says how far behind it is, and `"reports_lag": {"entries"}` '
-        "how far the views (the reports' rows and the graph index) are behind the store (both absent once caught "
-        "up)."
+        'to apply, `"apply_lag": {"entries", "seconds"}` says how far behind it is, and '
+        '`"reports_lag": {"entries", "seconds"}` how far the views (the reports\' rows and the graph index) are '
+        "behind the store (both absent once caught up)."
     ),
     response_class=ProbeResponse,
     responses={
@@ -76,9 +76,9 @@ async def ready(services: ServicesDep) -> ProbeResponse:
         entries, seconds = services.applier.lag()
         if entries:  # only then: the tutorial's `{"ready": true, "virtuoso": true}` stays exact when caught up
             body["apply_lag"] = {"entries": entries, "seconds": round(seconds, 3)}
-        behind = services.views.lag(services.applier.applied)  # the reports' rows and the graph index
+        behind, waited = services.views.lag(services.applier.applied)  # the reports' rows and the graph index
         if behind:
-            body["reports_lag"] = {"entries": behind}
+            body["reports_lag"] = {"entries": behind, "seconds": round(waited, 3)}
         return body, status
 
     body, status = await anyio.to_thread.run_sync(probe, limiter=_probe_threads)

@@ -154,18 +154,23 @@ class Projector:
                 self._progress.wait(remaining)
         return True
 
-    def lag(self, applied: int) -> int:
-        """Journal entries the store has and the views do not have yet (0 before the views are first ready:
-        until then they are not what answers)."""
+    def lag(self, applied: int) -> tuple[int, float]:
+        """Journal entries the store has and the views do not have yet, and how long the oldest of them has
+        waited (seconds); nothing before the views are first ready: until then they are not what answers."""
+        through = self.through
+        behind = self._behind(applied, through)
+        return behind, self.journal.age_of(through + 1) if behind else 0.0
+
+    def _behind(self, applied: int, through: int) -> int:
         if not any(projection.ready for projection in self.projections):
             return 0
-        return max(0, applied - self.through)
+        return max(0, applied - through)
 
     def pending(self, applied: int, limit: int) -> list[Quad] | None:
         """The triples the store has through entry `applied` and the views do not have yet, read from the journal
         (a reader adds them to what a view holds to answer as the store would); None when they cannot stand in
         for the store: a clearing is among those entries, or more than `limit` of them."""
-        behind = self.lag(applied)
+        behind = self._behind(applied, self.through)
         if behind == 0:
             return []
         if behind > limit:
