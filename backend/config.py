@@ -77,6 +77,11 @@ class Settings(BaseSettings):
     apply_batch_triples: int = Field(
         20_000, gt=0, description="Most triples the applier writes to the store in one step."
     )
+    keep_views: bool = Field(
+        True,
+        description="Keep the reports' rows and the graph index current as robots write; false: reports are "
+        "evaluated by their queries on every request and /graph answers 503 (to measure what keeping them costs).",
+    )
     skolem_base: str = Field(
         "",
         description="IRI prefix for skolemised blank nodes; empty = <graph authority>/.well-known/genid/.",

@@ -98,12 +98,14 @@ def build_services(
     applier.on_applied(lambda _step: version.bump())  # whatever the applier writes invalidates cached results
     cache = ResultCache(version, enabled=store.kind in OWNED_STORES)
     maintainer = ReportMaintainer(store, ReportRows(None if in_memory else settings.data_dir / REPORTS_FILE))
-    for query in catalog.under(REPORTS_FOLDER):
-        maintainer.add(query)
     index = GraphIndex(store, None if in_memory else settings.data_dir / GRAPH_FILE, detail_literals=TOLD_LITERALS)
-    views = Projector(
-        store, journal, [*maintainer.projections(), index], views_leadership, applier, maintainer.drop_unkept
-    )
+    if settings.keep_views:
+        for query in catalog.under(REPORTS_FOLDER):
+            maintainer.add(query)
+    # Views off: nothing kept, and the rows kept before stay as they are for when they are on again.
+    kept = [*maintainer.projections(), index] if settings.keep_views else []
+    housekeeping = maintainer.drop_unkept if settings.keep_views else None
+    views = Projector(store, journal, kept, views_leadership, applier, housekeeping)
     applier.on_applied(views.on_applied)
     graph = GraphService(
         catalog,
