@@ -1,0 +1,327 @@
+"""The soak: one robot that never stops logging, posted to as fast as the server answers, while an auditor reads.
+
+    python -m bench.soak                       # 15 minutes, embedded store, 4 client threads
+    python -m bench.soak --store virtuoso      # the same against a Virtuoso this command starts
+    python -m bench.soak --minutes 2           # a shorter run
+
+Every post is one visit to the same robot (bench/one_robot.py: about 56 triples, a new visitor each time), so
+the robot's node gains children with every post for the whole run. Meanwhile an auditor reads the
+conversations, participants, emotion-timeline and ml-usage reports and the graph every 2 s, a probe reads
+`/healthz/ready` every 0.5 s (how far the views are behind, in entries and seconds), and the server's resident
+memory is sampled every 5 s. When the posting ends, the command waits for the views to catch up, checks that
+every acknowledged post's triples are in the store, and prints the figures (markdown) with the sizes on disk of
+the store and of the views' files.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import gc
+import json
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import httpx
+
+from bench.client import BenchError, Client
+from bench.measure import Latency, machine, percentile
+from bench.one_robot import OneRobot, one_robot
+from bench.server import ServerProcess, segb_server
+
+AUDITOR_PAGES = (
+    "/reports/conversations?limit=50",
+    "/reports/participants?limit=50",
+    "/reports/emotion-timeline?limit=50",
+    "/reports/ml-usage?limit=50",
+    "/graph",
+)
+VIEW_FILES = ("reports.sqlite3", "graph.sqlite3")  # with their -wal files
+TARGETS = {"posts/s": 200.0, "lag p99 s": 2.0, "caught up s": 5.0, "page p50 ms": 50.0, "page p95 ms": 150.0}
+
+
+@dataclass
+class Posting:
+    """What the client threads did."""
+
+    acknowledged: int = 0
+    errors: list[str] = field(default_factory=list)
+    latencies: list[float] = field(default_factory=list)
+    seconds: float = 0.0
+    next_visit: int = 0
+    lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def take(self) -> int:
+        with self.lock:
+            index, self.next_visit = self.next_visit, self.next_visit + 1
+            return index
+
+
+@dataclass
+class Samples:
+    """What the auditor, the readiness probe and the memory sampler saw."""
+
+    pages: dict[str, list[float]] = field(default_factory=dict)
+    page_failures: list[str] = field(default_factory=list)
+    lag_seconds: list[float] = field(default_factory=list)
+    lag_entries: list[int] = field(default_factory=list)
+    rss_mib: list[tuple[float, float]] = field(default_factory=list)  # (seconds since start, MiB)
+    store_mib: list[tuple[float, float]] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class SoakFigures:
+    store: str
+    minutes: float
+    clients: int
+    posting: Posting
+    samples: Samples
+    caught_up_seconds: float | None
+    stored_triples: int
+    expected_triples: int
+    disk_mib: dict[str, float]
+
+    @property
+    def rate(self) -> float:
+        return self.posting.acknowledged / self.posting.seconds if self.posting.seconds else 0.0
+
+    def markdown(self) -> str:
+        lines = [
+            f"Soak: {self.store} store, one robot, {self.clients} client threads, {self.minutes:g} minutes "
+            f"(`python -m bench.soak --store {self.store} --minutes {self.minutes:g}`).",
+            "",
+            "| figure | measured | target |",
+            "|---|--:|--:|",
+            f"| posts acknowledged | {self.posting.acknowledged:,} ({self.rate:.0f} posts/s) | "
+            f"≥ {TARGETS['posts/s']:.0f} posts/s |",
+        ]
+        post = Latency.of(self.posting.latencies) if self.posting.latencies else None
+        if post is not None:
+            lines.append(f"| post latency p50 / p99 ms | {post.p50:.1f} / {post.p99:.1f} | |")
+        lag = self.samples.lag_seconds or [0.0]
+        lines += [
+            f"| reports_lag during the run p50 / p99 / max s | {percentile(lag, 50):.2f} / {percentile(lag, 99):.2f} /"
+            f" {max(lag):.2f} | p99 ≤ {TARGETS['lag p99 s']:.0f} s |",
+            f"| views caught up after the writes stopped | "
+            f"{'never' if self.caught_up_seconds is None else f'{self.caught_up_seconds:.2f} s'} | "
+            f"≤ {TARGETS['caught up s']:.0f} s |",
+            f"| errors (posts / pages) | {len(self.posting.errors)} / {len(self.samples.page_failures)} | 0 |",
+            f"| lost (triples acknowledged, not stored) | {max(0, self.expected_triples - self.stored_triples):,} of "
+            f"{self.expected_triples:,} | 0 |",
+        ]
+        for page, seconds in self.samples.pages.items():
+            figures = Latency.of(seconds)
+            lines.append(f"| auditor `{page}` p50 / p95 ms (n={figures.n}) | {figures.p50:.1f} / {figures.p95:.1f} | "
+                         f"≤ {TARGETS['page p50 ms']:.0f} / {TARGETS['page p95 ms']:.0f} |")  # fmt: skip
+        lines += self._memory_lines()
+        disk = self.disk_mib
+        views = sum(size for name, size in disk.items() if name != "store")
+        lines.append(
+            f"| disk: store / views ({', '.join(f'{n} {s:.0f}' for n, s in disk.items() if n != 'store')}) MiB | "
+            f"{disk.get('store', 0):.0f} / {views:.0f} ({views / disk['store'] if disk.get('store') else 0:.2f}x) | "
+            "views ≤ 0.5x |"
+        )
+        return "\n".join(lines)
+
+    def _memory_lines(self) -> list[str]:
+        rss = self.samples.rss_mib
+        if not rss:
+            return []
+        end = rss[-1][0]
+        last = [(at, mib) for at, mib in rss if at >= end - 300]
+        store = [(at, mib) for at, mib in self.samples.store_mib if at >= end - 300]
+        lines = [f"| server RSS start / end / max MiB | {rss[0][1]:.0f} / {rss[-1][1]:.0f} / "
+                 f"{max(m for _, m in rss):.0f} | |"]  # fmt: skip
+        if len(last) > 1 and len(store) > 1:
+            lines.append(
+                f"| last 5 minutes: RSS grew / store on disk grew MiB | {last[-1][1] - last[0][1]:+.0f} / "
+                f"{store[-1][1] - store[0][1]:+.0f} | RSS ≤ what the store explains |"
+            )
+        return lines
+
+
+def soak(store: str, minutes: float, clients: int, auditor_interval: float, root: Path) -> SoakFigures:
+    robot = one_robot()
+    with _server(store, root) as (server, data_dir):
+        with Client(server.url) as client:
+            client.publish(robot.first)
+        posting, samples = Posting(), Samples()
+        stop = threading.Event()
+        started = time.monotonic()
+        watchers = [
+            threading.Thread(target=_audit, args=(server.url, samples, stop, auditor_interval), daemon=True),
+            threading.Thread(target=_probe, args=(server.url, samples, stop), daemon=True),
+            threading.Thread(target=_sample_memory, args=(server, data_dir, samples, stop, started), daemon=True),
+        ]
+        posters = [
+            threading.Thread(target=_post, args=(server.url, robot, posting, stop), daemon=True) for _ in range(clients)
+        ]
+        for thread in [*watchers, *posters]:
+            thread.start()
+        _progress(posting, samples, stop, started, minutes * 60)
+        stop.set()
+        for thread in posters:
+            thread.join()
+        posting.seconds = time.monotonic() - started
+        caught_up = _caught_up(server.url)
+        for thread in watchers:
+            thread.join()
+        stored = _stored_triples(server.url)
+        expected = len(robot.first.splitlines()) + posting.acknowledged * len(robot.visit(0).splitlines())
+        disk = _disk(data_dir)
+    return SoakFigures(store, minutes, clients, posting, samples, caught_up, stored, expected, disk)
+
+
+@contextlib.contextmanager
+def _server(store: str, root: Path) -> Iterator[tuple[ServerProcess, Path]]:
+    data_dir = root / "data"
+    data_dir.mkdir()
+    env = {"LOGGING_LEVEL": "WARNING"}
+    if store == "virtuoso":
+        from tests.support.virtuoso import VirtuosoProcess
+
+        virtuoso = VirtuosoProcess(root / "virtuoso")
+        virtuoso.start()
+        try:
+            env |= {"VIRTUOSO_ENDPOINT": virtuoso.endpoint, "VIRTUOSO_PASSWORD": virtuoso.password,
+                    "VIRTUOSO_USER": virtuoso.user}  # fmt: skip
+            with segb_server("virtuoso", data_dir, env) as server:
+                yield server, data_dir
+        finally:
+            virtuoso.stop()
+    else:
+        with segb_server("oxigraph", data_dir, env) as server:
+            yield server, data_dir
+
+
+def _post(url: str, robot: OneRobot, posting: Posting, stop: threading.Event) -> None:
+    with Client(url, timeout=120) as client:
+        while not stop.is_set():
+            payload = robot.visit(posting.take())
+            begin = time.perf_counter()
+            try:
+                client.publish(payload)
+            except (BenchError, OSError) as error:
+                with posting.lock:
+                    posting.errors.append(str(error)[:200])
+                time.sleep(0.1)
+                client.close()
+                client = Client(url, timeout=120)
+                continue
+            with posting.lock:
+                posting.acknowledged += 1
+                posting.latencies.append(time.perf_counter() - begin)
+
+
+def _audit(url: str, samples: Samples, stop: threading.Event, interval: float) -> None:
+    with httpx.Client(base_url=url, timeout=60) as client:
+        while not stop.wait(interval):
+            for page in AUDITOR_PAGES:
+                begin = time.perf_counter()
+                try:
+                    answer = client.get(page)
+                except httpx.HTTPError as error:
+                    samples.page_failures.append(f"{page}: {error}")
+                    continue
+                if answer.status_code != 200:
+                    samples.page_failures.append(f"{page}: {answer.status_code} {answer.text[:200]}")
+                    continue
+                samples.pages.setdefault(page, []).append(time.perf_counter() - begin)
+
+
+def _probe(url: str, samples: Samples, stop: threading.Event) -> None:
+    with httpx.Client(base_url=url, timeout=30) as client:
+        while not stop.wait(0.5):
+            with contextlib.suppress(httpx.HTTPError, ValueError):
+                lag = client.get("/healthz/ready").json().get("reports_lag") or {}
+                samples.lag_entries.append(int(lag.get("entries", 0)))
+                samples.lag_seconds.append(float(lag.get("seconds", 0.0)))
+
+
+def _sample_memory(server: ServerProcess, data_dir: Path, samples: Samples, stop: threading.Event, t0: float) -> None:
+    while not stop.is_set():
+        rss = _rss_mib(server.pid)
+        now = time.monotonic() - t0
+        if rss is not None:
+            samples.rss_mib.append((now, rss))
+        samples.store_mib.append((now, _size_mib(data_dir / "oxigraph")))
+        stop.wait(5)
+
+
+def _progress(posting: Posting, samples: Samples, stop: threading.Event, started: float, seconds: float) -> None:
+    while (elapsed := time.monotonic() - started) < seconds:
+        time.sleep(min(30.0, seconds - elapsed))
+        lag = samples.lag_seconds[-1] if samples.lag_seconds else 0.0
+        rss = samples.rss_mib[-1][1] if samples.rss_mib else 0.0
+        print(f"  {time.monotonic() - started:5.0f} s: {posting.acknowledged:,} posts, reports_lag {lag:.2f} s, "
+              f"RSS {rss:.0f} MiB, errors {len(posting.errors)}", file=sys.stderr, flush=True)  # fmt: skip
+
+
+def _caught_up(url: str, timeout: float = 1800) -> float | None:
+    begin = time.monotonic()
+    with httpx.Client(base_url=url, timeout=30) as client:
+        while time.monotonic() - begin < timeout:
+            body = client.get("/healthz/ready").json()
+            if "reports_lag" not in body and "apply_lag" not in body:
+                return time.monotonic() - begin
+            time.sleep(0.05)
+    return None
+
+
+def _stored_triples(url: str) -> int:
+    answer = httpx.post(url + "/sparql", data={"query": "SELECT (COUNT(*) AS ?n) WHERE { ?s ?p ?o }"},
+                        headers={"Accept": "application/sparql-results+json"}, timeout=600)  # fmt: skip
+    answer.raise_for_status()
+    return int(answer.json()["results"]["bindings"][0]["n"]["value"])
+
+
+def _disk(data_dir: Path) -> dict[str, float]:
+    sizes = {"store": _size_mib(data_dir / "oxigraph")}
+    for name in VIEW_FILES:
+        sizes[name] = sum(_size_mib(data_dir / f"{name}{suffix}") for suffix in ("", "-wal"))
+    return sizes
+
+
+def _size_mib(path: Path) -> float:
+    if path.is_file():
+        return path.stat().st_size / 2**20
+    if path.is_dir():
+        return sum(item.stat().st_size for item in path.rglob("*") if item.is_file()) / 2**20
+    return 0.0
+
+
+def _rss_mib(pid: int | None) -> float | None:
+    status = Path(f"/proc/{pid}/status")
+    if pid is None or not status.exists():
+        return None
+    for line in status.read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024
+    return None
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m bench.soak", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--store", choices=("oxigraph", "virtuoso"), default="oxigraph")
+    parser.add_argument("--minutes", type=float, default=15.0)
+    parser.add_argument("--clients", type=int, default=4)
+    parser.add_argument("--auditor-interval", type=float, default=2.0)
+    parser.add_argument("--json", type=Path, help="also write the figures as JSON to this file")
+    args = parser.parse_args(argv)
+    gc.disable()  # the bench's own collections would be counted in whichever request was in flight
+    with tempfile.TemporaryDirectory(prefix="segb-soak-") as root:
+        figures = soak(args.store, args.minutes, args.clients, args.auditor_interval, Path(root))
+    print(figures.markdown())
+    print("\nmachine: " + "; ".join(f"{k} {v}" for k, v in machine().items()))
+    if args.json:
+        args.json.write_text(json.dumps({"markdown": figures.markdown(), "rate": figures.rate}, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
