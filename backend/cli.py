@@ -205,24 +205,27 @@ def _import(args: argparse.Namespace) -> int:
 def _rebuild(args: argparse.Namespace) -> int:
     settings = _settings(args)
     with _services(settings) as services:
-        if not services.leadership.try_acquire():
-            return _fail(f"a server is running on this journal (it holds {services.leadership.where}): stop it first")
-        journal, store = services.journal, services.store
+        writes, store = services.writes, services.store
+        if not writes.apply_leadership.try_acquire():
+            holder = writes.apply_leadership.where
+            return _fail(f"a server is running on this journal (it holds {holder}): stop it first")
+        journal = writes.journal
         start = journal.last_clearing()
         removed = store.clear(through=start)
         print(
             f"cleared the {store.kind} store ({removed} triples); applying journal entries {start + 1}…",
             file=sys.stderr,
         )
-        applied = services.applier.apply_pending()
+        writes.apply_now()
+        applied = writes.applied
         print(f"{store.kind} store rebuilt from the journal through entry {applied}: {store.count()} triples")
     return 0
 
 
 def _copy_state(args: argparse.Namespace) -> int:
-    from segb_server.backend.services.ingest.journal import JOURNAL_FILE, Journal
     from segb_server.backend.services.ops.leadership import LOCK_FILE, Leadership
     from segb_server.backend.services.shared_context.state import STATE_FILE, ContextState
+    from segb_server.backend.services.writing.journal import JOURNAL_FILE, Journal
     from segb_server.backend.state.copying import CONTEXT_TABLES, JOURNAL_TABLES, TargetNotEmpty, copy_tables
     from segb_server.backend.state.opening import open_state
     from segb_server.backend.state.postgres import PostgresDatabase, redacted
@@ -288,7 +291,7 @@ def _services(settings: Settings) -> Iterator[Services]:
 
 def _export(args: argparse.Namespace) -> int:
     from segb_server.backend.services.formats import EXPORTS, by_name
-    from segb_server.backend.services.views.export import stream_graph
+    from segb_server.backend.services.graph.export import stream_graph
     from segb_server.backend.store.factory import open_store
 
     settings = _settings(args)

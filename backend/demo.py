@@ -80,8 +80,8 @@ def load_demo(services: Services) -> IngestResult | None:
     payload = RdfPayload(turtle.encode("utf-8"), RdfFormat.TURTLE, claimed_user=DEMO_USER)
     result = services.ingest.ingest(payload, actor=DEMO_USER)
     # The first page a newcomer opens shows the demo: wait until the store and the reports' rows have it.
-    if services.applier.wait_for(result.sequence, SETTLE_SECONDS):
-        services.views.wait_for(result.sequence, SETTLE_SECONDS)
+    if services.writes.wait_applied(result.sequence, SETTLE_SECONDS):
+        services.writes.wait_viewed(result.sequence, SETTLE_SECONDS)
     logger.info(
         "demo dataset loaded: %d triples (robots ARI and TIAGo, humans Maria and Carlos; log_id=%s)",
         result.triples_new,

@@ -11,11 +11,11 @@ from typing import Any
 from bench.measure import Latency
 from segb_server.backend.config import Settings
 from segb_server.backend.services.container import build_services
-from segb_server.backend.services.ingest.applier import Applier
-from segb_server.backend.services.ingest.journal import Journal
 from segb_server.backend.services.ingest.parsing import parse_quads, skolemized
 from segb_server.backend.services.ingest.payloads import decode_ingest_body
 from segb_server.backend.services.ingest.service import post_entry
+from segb_server.backend.services.writing.applier import Applier
+from segb_server.backend.services.writing.journal import Journal
 from segb_server.backend.store.factory import open_store
 
 STEPS = (
@@ -45,7 +45,7 @@ def breakdown(payloads: list[str], folder: Path) -> dict[str, Latency]:
     seconds: dict[str, list[float]] = {step: [] for step in steps}
     try:
         for payload in payloads:
-            marks = _one_post(payload, services.journal, services.applier)
+            marks = _one_post(payload, services.writes.journal, services.writes.applier)
             if upkeep is not None:
                 upkeep.wait_until_current(600)
                 marks.append(time.perf_counter())
@@ -68,6 +68,7 @@ def _reports_upkeep(services: Any) -> Any:
     up), wherever the services hold it; None when they hold nothing of the kind."""
     reports = getattr(services, "reports", None)
     candidates = (
+        getattr(getattr(services, "writes", None), "keeper", None),
         getattr(services, "views", None),
         getattr(services, "projector", None),
         getattr(reports, "maintainer", None),

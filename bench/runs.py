@@ -18,7 +18,7 @@ from bench.client import BenchError, Client
 from bench.measure import Latency
 from bench.probes import LagFigures, ReadinessProbe, wait_caught_up
 from bench.workloads import CumulativePost
-from segb_server.backend.services.ingest.journal import JOURNAL_FILE
+from segb_server.backend.services.writing.journal import JOURNAL_FILE
 
 REPORTS_FILE = "reports.sqlite3"  # where the server keeps the reports' rows, beside the journal
 

@@ -12,9 +12,9 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from segb_server.backend.auth import AuthenticationFailed, PermissionDenied
 from segb_server.backend.services import errors as service_errors
 from segb_server.backend.services.formats import NotAcceptable
-from segb_server.backend.services.ingest.journal import StorageFull
 from segb_server.backend.services.ingest.service import JournalBacklogFull
 from segb_server.backend.services.sparql.runner import QueryTooBig
+from segb_server.backend.services.writing.journal import StorageFull
 from segb_server.backend.state.database import StateUnavailable
 from segb_server.backend.store.base import QueryTimeout, StoreError, StoreRejectedQuery, StoreUnavailable
 

@@ -13,7 +13,7 @@ import pytest
 from pyoxigraph import RdfFormat, parse
 
 from segb_server.backend.api.app import create_app
-from segb_server.backend.services.views.export import BATCH_TRIPLES
+from segb_server.backend.services.graph.export import BATCH_TRIPLES
 from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.conftest import make_settings
 from tests.support.live_server import LiveServer

@@ -20,18 +20,19 @@ from pyoxigraph import Literal, NamedNode, Quad
 from segb_server.backend.api.app import create_app
 from segb_server.backend.config import PACKAGE_ROOT, Settings
 from segb_server.backend.services.container import GRAPH_FILE
-from segb_server.backend.services.ingest.journal import Journal
-from segb_server.backend.services.sparql.catalog import Catalog
-from segb_server.backend.services.views import graph_index
-from segb_server.backend.services.views.graph import GraphService
-from segb_server.backend.services.views.graph_index import (
+from segb_server.backend.services.graph import index as graph_index
+from segb_server.backend.services.graph.index import (
     FIRST_VIEW,
     INDEX_VERSION,
     RDF_TYPE,
     GraphIndex,
     GraphRequest,
 )
-from segb_server.backend.services.views.projector import Projector
+from segb_server.backend.services.graph.service import GraphService
+from segb_server.backend.services.sparql.catalog import Catalog
+from segb_server.backend.services.upkeep.delta import Delta
+from segb_server.backend.services.upkeep.keeper import ViewKeeper
+from segb_server.backend.services.writing.journal import Journal
 from segb_server.backend.state.sqlite import SqliteDatabase
 from segb_server.backend.store.base import Store
 from segb_server.backend.store.oxigraph import OxigraphStore
@@ -186,7 +187,7 @@ def test_an_index_kept_from_before_a_restart_draws_its_first_view_before_the_fir
     before.close()
     restarted = GraphIndex(store, tmp_path / "graph.sqlite3")
     draws = count_view_draws(restarted)
-    projector = Projector(store, Journal(SqliteDatabase(tmp_path / "journal.sqlite3")), [restarted])
+    projector = ViewKeeper(store, Journal(SqliteDatabase(tmp_path / "journal.sqlite3")), [restarted])
     projector.start()
     try:
         assert projector.wait_for(1, timeout=10)
@@ -252,7 +253,7 @@ def test_the_first_view_is_kept_while_posts_land_after_it_and_drawn_again_when_o
 
     def step(quads: list[Quad], through: int) -> None:
         store.apply(quads, through)
-        index.update(quads, through)
+        index.update(Delta.of(quads), through)
         assert index.view(FIRST_VIEW) == fresh(store, FIRST_VIEW), through
 
     first = index.view(FIRST_VIEW)
@@ -302,7 +303,7 @@ def test_a_watched_first_view_is_drawn_again_by_the_keeper_and_an_unwatched_one_
             assert len(draws) == 1
         for number in range(10 * watched, 10 * watched + 3):  # each new activity enters the small first view
             store.apply(activity(number), number + 1)
-            index.update(activity(number), number + 1)
+            index.update(Delta.of(activity(number)), number + 1)
         assert len(draws) == (4 if watched else 1), watched
         if watched:
             assert index.view(FIRST_VIEW) == fresh(store, FIRST_VIEW)
@@ -332,7 +333,7 @@ def test_a_request_while_the_keeper_draws_the_first_view_gets_the_one_before_and
     index._view = slow_for_the_keeper  # type: ignore[method-assign]
     robot = [Quad(NamedNode(f"{EX}robot/ari"), NamedNode(RDF_TYPE), NamedNode("http://kb.openrobots.org#Robot"))]
     store.apply(robot, 1)
-    keeper = threading.Thread(target=index.update, args=(robot, 1), name="keeper")
+    keeper = threading.Thread(target=index.update, args=(Delta.of(robot), 1), name="keeper")
     keeper.start()
     assert started.wait(30)
     assert graph.graph(FIRST_VIEW) == before
@@ -375,7 +376,7 @@ def test_a_neighbourhood_is_kept_while_other_robots_post_and_drawn_again_when_a_
             index.clear(through)
         else:
             store.apply(quads, through)
-            index.update(quads, through)
+            index.update(Delta.of(quads), through)
         before = len(drawn)
         assert index.view(ari) == fresh(store, ari), through
         return len(drawn) - before
@@ -430,7 +431,7 @@ def test_kept_neighbourhoods_under_concurrent_requests_and_updates_end_equal_a_f
         for through in range(1, 61):
             quads = activity(robots[through % 3], 100 + through)
             store.apply(quads, through)
-            index.update(quads, through)
+            index.update(Delta.of(quads), through)
         writing.clear()
         for reader in readers:
             reader.join()

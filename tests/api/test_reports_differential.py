@@ -19,7 +19,7 @@ from pyoxigraph import QueryResultsFormat, parse_query_results
 from segb_server.backend.api.app import create_app
 from segb_server.backend.config import PACKAGE_ROOT
 from segb_server.backend.services.sparql.catalog import Catalog
-from segb_server.backend.services.views.term_values import json_value
+from segb_server.backend.services.values import json_value
 from segb_server.backend.store.base import Store
 from segb_server.backend.store.oxigraph import OxigraphStore
 from segb_server.backend.store.terms import bind_values

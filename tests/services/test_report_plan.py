@@ -10,8 +10,9 @@ from pyoxigraph import NamedNode, Quad
 
 from segb_server.backend.config import PACKAGE_ROOT
 from segb_server.backend.services.sparql.catalog import Catalog
-from segb_server.backend.services.views.materialized.maintainer import KeyFinder
-from segb_server.backend.services.views.materialized.plan import plan_report
+from segb_server.backend.services.upkeep.delta import Delta
+from segb_server.backend.services.upkeep.kept_queries.keys import KeyFinder
+from segb_server.backend.services.upkeep.kept_queries.plan import plan_report
 from segb_server.backend.store.oxigraph import OxigraphStore
 from segb_server.backend.vocabulary import PREFIXES
 
@@ -42,10 +43,10 @@ def test_types_that_are_not_people_touch_no_emotion_key_and_ask_the_store_nothin
     activity = NamedNode("https://example.org/a/activity_1")
     other_types = [Quad(activity, RDF_TYPE, NamedNode(PREFIXES["oro"] + "EmotionRecognitionEvent"))]
     try:
-        assert KeyFinder(plan, "emotion").units(other_types, store) == set()
+        assert KeyFinder(plan, "emotion").units(Delta.of(other_types), store) == set()
         assert store.asked == 0
         person = [Quad(NamedNode("https://example.org/h/maria"), RDF_TYPE, NamedNode(PREFIXES["oro"] + "Human"))]
-        KeyFinder(plan, "emotion").units(person, store)  # a person's type may change the target's kind
+        KeyFinder(plan, "emotion").units(Delta.of(person), store)  # a person's type may change the target's kind
         assert store.asked == 1
     finally:
         store.close()

@@ -11,10 +11,10 @@ from pathlib import Path
 import psycopg
 import pytest
 
-from segb_server.backend.services.ingest.journal import Journal, PostEntry, triple_digest
 from segb_server.backend.services.ops.leadership import SharedLeadership
 from segb_server.backend.services.shared_context.policy import Policy
 from segb_server.backend.services.shared_context.service import Observation, SharedContextService
+from segb_server.backend.services.writing.journal import Journal, PostEntry, triple_digest
 from segb_server.backend.state.database import Database
 from segb_server.backend.state.postgres import PostgresDatabase
 from segb_server.backend.state.sqlite import SqliteDatabase

@@ -10,7 +10,7 @@ from fastapi.responses import StreamingResponse
 
 from segb_server.backend.api.deps import Auditor, ServicesDep
 from segb_server.backend.services.formats import EXPORTS, names, negotiate
-from segb_server.backend.services.views.export import stream_graph, stream_received
+from segb_server.backend.services.graph.export import stream_graph, stream_received
 
 router = APIRouter(tags=["export"])
 
@@ -39,7 +39,7 @@ async def export_events(
 ) -> StreamingResponse:
     fmt = negotiate(EXPORTS, request.headers.get("accept"), format, what="the events graph")
     if form == "received":
-        chunks = stream_received(services.journal, fmt, services.store.graph_uri)
+        chunks = stream_received(services.writes.journal, fmt, services.store.graph_uri)
     else:
         # The store's first batch is read before answering, so a store that is down is a 503, not an answer
         # cut off midway.

@@ -10,9 +10,9 @@ from fastapi.concurrency import run_in_threadpool
 
 from segb_server.backend.api.deps import Auditor, ServicesDep
 from segb_server.backend.api.responses import FastJSONResponse
+from segb_server.backend.services.graph.service import MAX_NODES, GraphRequest, parse_types
 from segb_server.backend.services.sparql.catalog import Parameter, to_term
-from segb_server.backend.services.views.graph import MAX_NODES, GraphRequest, parse_types
-from segb_server.backend.services.views.term_values import iso_time
+from segb_server.backend.services.values import iso_time
 
 router = APIRouter(tags=["graph"])
 

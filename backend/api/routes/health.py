@@ -66,19 +66,22 @@ async def ready(services: ServicesDep) -> ProbeResponse:
             body.update({"ready": False, store.kind: False, "detail": str(error)})
             status = 503
         try:
-            services.journal.ping()
+            services.writes.journal.ping()
         except StateUnavailable as error:
             body.update({"ready": False, "journal": False, "detail": f"journal: {error}"})
             return body, 503
-        if not services.journal.storage_ok():
-            body.update({"ready": False, "journal": False, "detail": f"journal: {services.journal.storage_problem}"})
+        if not services.writes.journal.storage_ok():
+            body.update(
+                {"ready": False, "journal": False, "detail": f"journal: {services.writes.journal.storage_problem}"}
+            )
             status = 503
-        entries, seconds = services.applier.lag()
-        if entries:  # only then: the tutorial's `{"ready": true, "virtuoso": true}` stays exact when caught up
-            body["apply_lag"] = {"entries": entries, "seconds": round(seconds, 3)}
-        behind, waited = services.views.lag(services.applier.applied)  # the reports' rows and the graph index
-        if behind:
-            body["reports_lag"] = {"entries": behind, "seconds": round(waited, 3)}
+        lag = services.writes.lag()
+        if (
+            lag.apply_entries
+        ):  # only then: the tutorial's `{"ready": true, "virtuoso": true}` stays exact when caught up
+            body["apply_lag"] = {"entries": lag.apply_entries, "seconds": round(lag.apply_seconds, 3)}
+        if lag.views_entries:  # the reports' rows and the graph index
+            body["reports_lag"] = {"entries": lag.views_entries, "seconds": round(lag.views_seconds, 3)}
         return body, status
 
     body, status = await anyio.to_thread.run_sync(probe, limiter=_probe_threads)

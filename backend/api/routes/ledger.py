@@ -68,7 +68,7 @@ async def list_receipts(
     limit: Annotated[int, Query(ge=1, le=MAX_LIMIT)] = 100,
     offset: Offset = 0,
 ) -> LedgerPage:
-    receipts, total = await run_in_threadpool(services.journal.page, limit, offset)
+    receipts, total = await run_in_threadpool(services.writes.journal.page, limit, offset)
     return LedgerPage(receipts=[receipt.public() for receipt in receipts], total=total, limit=limit, offset=offset)
 
 
@@ -89,7 +89,7 @@ async def verify_ledger(
     principal: Auditor,
     deep: Annotated[bool, Query(description="Hash every entry's content too.")] = False,
 ) -> VerificationOut:
-    checked = await run_in_threadpool(lambda: services.journal.verify(deep=deep))
+    checked = await run_in_threadpool(lambda: services.writes.journal.verify(deep=deep))
     broken = checked.first_broken
     return VerificationOut(
         valid=checked.valid,
@@ -116,7 +116,7 @@ async def receipt(
     log_id: str, request: Request, services: ServicesDep, principal: Auditor, format: str | None = Query(None)
 ) -> Response:
     fmt = negotiate(_CONTENT_FORMATS, request.headers.get("accept"), format, what="a receipt")
-    found, content = await run_in_threadpool(services.journal.entry, log_id)
+    found, content = await run_in_threadpool(services.writes.journal.entry, log_id)
     if fmt.name == "ntriples":
         return Response(content or b"", media_type=fmt.media_type)
     body = {"receipt": found.public(), "content": None if content is None else content.decode("utf-8")}

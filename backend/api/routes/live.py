@@ -18,8 +18,8 @@ from fastapi.responses import StreamingResponse
 
 from segb_server.backend.api.deps import Auditor, ServicesDep
 from segb_server.backend.services.errors import NotFound
-from segb_server.backend.services.views.reports import FOLDER
-from segb_server.backend.services.views.signal import ChangeSignal
+from segb_server.backend.services.reports.service import FOLDER
+from segb_server.backend.services.upkeep.signal import ChangeSignal
 
 router = APIRouter(tags=["reports"])
 

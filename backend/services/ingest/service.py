@@ -20,13 +20,13 @@ from pyoxigraph import NamedNode, Quad, RdfFormat, parse
 
 from segb_server.backend.auth import PermissionDenied
 from segb_server.backend.services.errors import OUTAGES, InvalidParameter, ServiceError
-from segb_server.backend.services.ingest.applier import Applier
 from segb_server.backend.services.ingest.group_commit import GroupCommit
-from segb_server.backend.services.ingest.journal import Journal, PostEntry, triple_digest
 from segb_server.backend.services.ingest.parsing import invalid_rdf, parse_quads, refuse_triple_terms, skolemized
 from segb_server.backend.services.ingest.payloads import RdfPayload
-from segb_server.backend.services.ingest.receipts import Receipt
 from segb_server.backend.services.ingest.skolem import might_contain_blank_nodes
+from segb_server.backend.services.writing.journal import PostEntry, triple_digest
+from segb_server.backend.services.writing.receipts import Receipt
+from segb_server.backend.services.writing.write_path import WritePath
 from segb_server.backend.store.base import StoreUnavailable
 from segb_server.backend.store.terms import term_text
 
@@ -82,8 +82,7 @@ class IngestService:
 
     def __init__(
         self,
-        journal: Journal,
-        applier: Applier,
+        writes: WritePath,
         *,
         skolem_base: str,
         max_triples: int,
@@ -91,14 +90,14 @@ class IngestService:
         apply_timeout: float,
         max_backlog: int,
     ) -> None:
-        self.journal = journal
-        self.applier = applier
+        self.writes = writes
+        self.journal = writes.journal
         self.ack = ack
         self._skolem_base = skolem_base
         self._max_triples = max_triples
         self._apply_timeout = apply_timeout
         self._max_backlog = max_backlog
-        self._writer: GroupCommit[PostEntry, Receipt] = GroupCommit(journal.append_posts)
+        self._writer: GroupCommit[PostEntry, Receipt] = GroupCommit(writes.journal.append_posts)
 
     def ingest(self, payload: RdfPayload, *, actor: str, scopes: tuple[str, ...] = ()) -> IngestResult:
         """Parse (concurrently with other posts), check, then journal the post; returns once its entry is
@@ -144,7 +143,7 @@ class IngestService:
         return ImportResult(path, read, new)
 
     def _refuse_past_backlog(self) -> None:
-        behind = self.journal.head() - self.applier.applied
+        behind = self.writes.backlog()
         if self._max_backlog and behind > self._max_backlog:
             raise JournalBacklogFull(
                 f"The store is {behind} entries behind the journal (JOURNAL_MAX_BACKLOG is {self._max_backlog}); "
@@ -154,16 +153,16 @@ class IngestService:
 
     def _acknowledge(self, receipt: Receipt) -> None:
         if self.ack == "journal":
-            self.applier.notify()
+            self.writes.entries_written()
             return
         try:
-            self.applier.apply_pending()  # the poster applies what is pending itself: no hop to another thread
+            self.writes.apply_now()
         except OUTAGES as error:
             raise NotYetApplied(
                 f"kept in the journal as log_id {receipt.log_id}, but it could not be applied yet ({error}); it is "
                 "applied as soon as the store answers"
             ) from None
-        if not self.applier.wait_for(receipt.sequence, self._apply_timeout):
+        if not self.writes.wait_applied(receipt.sequence, self._apply_timeout):
             raise NotYetApplied(
                 f"kept in the journal as log_id {receipt.log_id}; the store has not applied it within "
                 f"{self._apply_timeout:g} s (INGEST_APPLY_TIMEOUT_SECONDS)"

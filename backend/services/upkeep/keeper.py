@@ -1,7 +1,7 @@
 """Keeping views of the graph current from the journal's stream of new triples.
 
-A view (a report's rows, the graph index) is a `Projection`: built once from the whole store, then updated
-from what each applied journal step added, and emptied by a clearing. The `Projector` runs them all in one
+A view (a report's rows, the graph index) is a `KeptView`: built once from the whole store, then updated
+from what each applied journal step added, and emptied by a clearing. The `ViewKeeper` runs them all in one
 background thread fed by the applier, so every view follows the same stream in the same order. A view
 records the journal sequence it includes: after a restart it catches up from the journal instead of being
 built again.
@@ -33,9 +33,11 @@ from typing import Protocol
 from pyoxigraph import Quad
 
 from segb_server.backend.services.errors import OUTAGES
-from segb_server.backend.services.ingest.applier import Applied, Applier, applied_steps, quads_of
-from segb_server.backend.services.ingest.journal import Journal
 from segb_server.backend.services.ops.leadership import Leadership
+from segb_server.backend.services.upkeep.delta import Delta
+from segb_server.backend.services.writing.applier import Applied, Applier, applied_steps, quads_of
+from segb_server.backend.services.writing.cursor import Cursor
+from segb_server.backend.services.writing.journal import Journal
 from segb_server.backend.store.base import Store
 
 logger = logging.getLogger("segb.views")
@@ -52,9 +54,13 @@ MAX_REST_SECONDS = 0.25
 # of that. The rest is then cut short, and only while batches are that slow.
 START_WITHIN_SECONDS = 0.4
 FOLLOW_SECONDS = 0.25  # how often a following process reads how far the leader's views are
+# Applied steps wait in the queue with their triples up to this many; past it, a step waits as its journal
+# entries' numbers and its triples are read back from the journal when its turn comes, so memory stays bounded
+# however far the views fall behind (a burst of posts, a slow store).
+MAX_QUEUED_TRIPLES = 20_000
 
 
-class Projection(Protocol):
+class KeptView(Protocol):
     name: str
     ready: bool  # built (or caught up) since this server started: its answers can be served
 
@@ -65,9 +71,9 @@ class Projection(Protocol):
     def build(self, through: int) -> None:
         """Make the view from the whole store, which holds the journal through `through`."""
 
-    def update(self, quads: list[Quad], through: int) -> None:
-        """Add what `quads` (just added to the store) change; the view then includes the journal through
-        `through`."""
+    def update(self, delta: Delta, through: int) -> None:
+        """Add what the triples of `delta` (just added to the store) change; the view then includes the journal
+        through `through`."""
 
     def clear(self, through: int) -> None:
         """The graph was emptied at `through`."""
@@ -87,39 +93,51 @@ class _Marker:
 
 
 @dataclass(frozen=True)
+class _Unread:
+    """An applied step whose triples the queue did not keep (past MAX_QUEUED_TRIPLES): read from the journal."""
+
+    first: int
+    last: int
+
+
+@dataclass(frozen=True)
 class _Waiting:
     """A step or a marker in the queue, with when it was queued (`time.monotonic()`)."""
 
-    item: Applied | _Marker
+    item: Applied | _Unread | _Marker
     since: float
 
 
-class Projector:
+class ViewKeeper:
     def __init__(
         self,
         store: Store,
         journal: Journal,
-        projections: list[Projection],
+        views: list[KeptView],
         leadership: Leadership | None = None,
         applier: Applier | None = None,
         housekeeping: Callable[[], None] | None = None,
+        max_queued_triples: int = MAX_QUEUED_TRIPLES,
     ) -> None:
         """`applier`: the process's applier, when the views' leadership is not its (then, while it does not
         apply, the views read what it saw applied from the journal). `housekeeping`: run once the views are
         ready, by the process that keeps them (the only one that writes them)."""
         self.store = store
         self.journal = journal
-        self.projections = projections
+        self.views = views
         self.leadership = leadership or Leadership(None)
         self._applier = applier if applier is not None and applier.leadership is not self.leadership else None
         self._housekeeping = housekeeping
         self._queue: queue.Queue[_Waiting | None] = queue.Queue()
+        self._queued_triples = 0  # held by the steps in the queue
+        self._max_queued_triples = max_queued_triples
+        self.most_queued_triples = 0  # the most the queue has held (what its memory is bounded by)
+        self._queued_lock = threading.Lock()
         self._thread: threading.Thread | None = None
         self._stopping = threading.Event()  # ends retry waits too: a store that never returns must not hold shutdown
-        self._progress = threading.Condition()
         self.last_error: str | None = None
-        self.through = 0  # the journal entry every view is current through
-        workers = max(1, len(projections)) if store.remote else 1
+        self.cursor = Cursor()  # the journal entry every view is current through
+        workers = max(1, len(views)) if store.remote else 1
         self._workers = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="segb-view")
 
     def start(self) -> None:
@@ -135,7 +153,13 @@ class Projector:
 
     def on_applied(self, step: Applied) -> None:
         """The applier's listener: called in the applier's thread, so it only queues."""
-        self._queue.put(_Waiting(step, time.monotonic()))
+        with self._queued_lock:
+            kept = self._queued_triples + len(step.quads) <= self._max_queued_triples
+            if kept:
+                self._queued_triples += len(step.quads)
+                self.most_queued_triples = max(self.most_queued_triples, self._queued_triples)
+        item = step if kept else _Unread(step.entries[0].sequence, step.entries[-1].sequence)
+        self._queue.put(_Waiting(item, time.monotonic()))
 
     def wait_until_current(self, timeout: float) -> bool:
         """Wait until every step applied so far is in the views."""
@@ -145,14 +169,12 @@ class Projector:
 
     def wait_for(self, sequence: int, timeout: float) -> bool:
         """Wait until the views include journal entry `sequence` (True), or `timeout` seconds passed."""
-        deadline = time.monotonic() + timeout
-        with self._progress:
-            while self.through < sequence or not all(p.ready for p in self.projections):
-                remaining = deadline - time.monotonic()
-                if remaining <= 0:
-                    return False
-                self._progress.wait(remaining)
-        return True
+        return self.cursor.wait_for(sequence, timeout, reached=lambda: all(p.ready for p in self.views))
+
+    @property
+    def through(self) -> int:
+        """The journal entry every view is current through."""
+        return self.cursor.value
 
     def lag(self, applied: int) -> tuple[int, float]:
         """Journal entries the store has and the views do not have yet, and how long the oldest of them has
@@ -162,7 +184,7 @@ class Projector:
         return behind, self.journal.age_of(through + 1) if behind else 0.0
 
     def _behind(self, applied: int, through: int) -> int:
-        if not any(projection.ready for projection in self.projections):
+        if not any(view.ready for view in self.views):
             return 0
         return max(0, applied - through)
 
@@ -206,7 +228,7 @@ class Projector:
             steps = self._next_steps(rested)
             if steps is None:
                 return
-            applied = [step for step in steps if isinstance(step, Applied)]
+            applied = [step for step in steps if not isinstance(step, _Marker)]
             began = time.monotonic()
             if applied and not self._process_retrying(applied):
                 return
@@ -216,7 +238,7 @@ class Projector:
             ended = time.monotonic()
             rested = ended + min(MAX_REST_SECONDS, REST_RATIO * (ended - began)) if applied else 0.0
 
-    def _next_steps(self, rested: float) -> list[Applied | _Marker] | None:
+    def _next_steps(self, rested: float) -> list[Applied | _Unread | _Marker] | None:
         """What to do next, once the rest ending at `rested` is over (or the first step waiting has waited
         START_WITHIN_SECONDS): what the applier queued, or (where another process applies) what the journal
         holds up to the store's cursor. None when stopping."""
@@ -228,11 +250,30 @@ class Projector:
             return None
         if self._stopping.wait(max(0.0, min(rested, first.since + START_WITHIN_SECONDS) - time.monotonic())):
             return None
-        steps = [first.item]
-        while not self._queue.empty() and len(steps) < BATCH_STEPS:
+        items: list[Applied | _Unread | _Marker] = [first.item]
+        while not self._queue.empty() and len(items) < BATCH_STEPS:
             if (waiting := self._queue.get()) is None:
                 return None
-            steps.append(waiting.item)
+            items.append(waiting.item)
+        with self._queued_lock:
+            self._queued_triples -= sum(len(item.quads) for item in items if isinstance(item, Applied))
+        return items
+
+    def _read_unread(self, items: list[Applied | _Unread]) -> list[Applied]:
+        """The steps with each run of unread ones read from the journal (one read a run)."""
+        steps: list[Applied] = []
+        run: list[_Unread] = []
+        for item in [*items, None]:
+            if isinstance(item, _Unread) and (not run or item.first == run[-1].last + 1):
+                run.append(item)
+                continue
+            if run:
+                steps += applied_steps(self.journal.entries_after(run[0].first - 1, run[-1].last - run[0].first + 1))
+                run = []
+            if isinstance(item, _Unread):
+                run.append(item)
+            elif item is not None:
+                steps.append(item)
         return steps
 
     def _pulled(self) -> list[Applied]:
@@ -257,7 +298,7 @@ class Projector:
             start = cleared - 1
         return applied_steps(self.journal.entries_after(start, before - 1 - start))
 
-    def _process_retrying(self, applied: list[Applied]) -> bool:
+    def _process_retrying(self, applied: list[Applied | _Unread]) -> bool:
         """Process `applied`, retrying while the store is away; False when stopped meanwhile."""
         while True:
             try:
@@ -271,60 +312,61 @@ class Projector:
                     return False
             except Exception:
                 logger.exception("keeping the views current failed; building them again")
-                through = applied[-1].entries[-1].sequence
-                for projection in self.projections:
-                    projection.build(through)
+                last = applied[-1]
+                through = last.last if isinstance(last, _Unread) else last.entries[-1].sequence
+                for view in self.views:
+                    view.build(through)
                 self._advance(through)
                 return True
 
     def _follow(self) -> None:
         try:
-            stored = [projection.follow() for projection in self.projections]
+            stored = [view.follow() for view in self.views]
         except Exception as error:  # e.g. the leader is building a view of another version just now
             self.last_error = str(error)
             return
         self.last_error = None
-        for projection, through in zip(self.projections, stored, strict=True):
-            projection.ready = through is not None
+        for view, through in zip(self.views, stored, strict=True):
+            view.ready = through is not None
         known = [through for through in stored if through is not None]
         if len(known) == len(stored):
             self._advance(min(known))
 
     def _prepare_all(self) -> None:
         current = self.store.applied_through() or 0
-        for projection in self.projections:
-            stored = projection.stored_through()
+        for view in self.views:
+            stored = view.stored_through()
             if stored is None:
-                self._build(projection, current)
+                self._build(view, current)
             else:
                 try:
-                    self._catch_up(projection, stored, current)
+                    self._catch_up(view, stored, current)
                 except OUTAGES:
                     raise
                 except Exception:  # as in `_process_retrying`: the thread must live on, and the view be current
-                    logger.exception("catching view %s up failed; building it again", projection.name)
-                    self._build(projection, current)
-            projection.prepared()
-            projection.ready = True
+                    logger.exception("catching view %s up failed; building it again", view.name)
+                    self._build(view, current)
+            view.prepared()
+            view.ready = True
         self._advance(current)
 
-    def _build(self, projection: Projection, through: int) -> None:
+    def _build(self, view: KeptView, through: int) -> None:
         started = time.perf_counter()
-        projection.build(through)
-        logger.info("view %s built in %.1f s", projection.name, time.perf_counter() - started)
+        view.build(through)
+        logger.info("view %s built in %.1f s", view.name, time.perf_counter() - started)
 
-    def _catch_up(self, projection: Projection, stored: int, current: int) -> None:
+    def _catch_up(self, view: KeptView, stored: int, current: int) -> None:
         """Apply what the store received while this server was not keeping the view current."""
         if stored >= current:
             return
         entries = self.journal.entries_after(stored, current - stored)
         if any(entry.action == "delete_all" for entry in entries):
-            self._build(projection, current)
+            self._build(view, current)
             return
-        projection.update(quads_of(entries), current)
+        view.update(Delta.of(quads_of(entries)), current)
 
-    def _process(self, steps: list[Applied]) -> None:
-        steps = [step for step in steps if step.entries[-1].sequence > self.through]  # already read from the journal
+    def _process(self, items: list[Applied | _Unread]) -> None:
+        steps = [step for step in self._read_unread(items) if step.entries[-1].sequence > self.through]
         if not steps:
             return
         first = steps[0].entries[0].sequence
@@ -334,11 +376,11 @@ class Projector:
         cleared = max((index for index, step in enumerate(steps) if step.cleared), default=-1)
         if cleared >= 0:
             at = steps[cleared].entries[-1].sequence
-            for projection in self.projections:
-                projection.clear(at)
+            for view in self.views:
+                view.clear(at)
             steps = steps[cleared + 1 :]
-        quads = [quad for step in steps for quad in step.quads]
-        updates = [self._workers.submit(projection.update, quads, through) for projection in self.projections]
+        delta = Delta.of([quad for step in steps for quad in step.quads])  # matched by every view
+        updates = [self._workers.submit(view.update, delta, through) for view in self.views]
         for update in updates:  # every one finishes before an error is raised: a retry starts from a quiet state
             update.exception()
         for update in updates:
@@ -346,6 +388,4 @@ class Projector:
         self._advance(through)
 
     def _advance(self, through: int) -> None:
-        with self._progress:
-            self.through = max(self.through, through)
-            self._progress.notify_all()
+        self.cursor.advance(through)

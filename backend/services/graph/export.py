@@ -9,7 +9,7 @@ from itertools import chain
 from pyoxigraph import NamedNode, Quad, RdfFormat, Triple, parse
 
 from segb_server.backend.services.formats import Format, rdf_bytes
-from segb_server.backend.services.ingest.journal import Journal
+from segb_server.backend.services.writing.journal import Journal
 from segb_server.backend.store.base import Store
 from segb_server.backend.vocabulary import PREFIXES
 

@@ -10,8 +10,8 @@ from dataclasses import dataclass
 from segb_server.backend.services.errors import Conflict, InvalidParameter, NotFound
 from segb_server.backend.services.ops.result_cache import DataVersion, ResultCache
 from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, Catalog, CatalogQuery, paged
-from segb_server.backend.services.views.materialized.maintainer import ReportMaintainer
-from segb_server.backend.services.views.term_values import JsonValue, json_value
+from segb_server.backend.services.upkeep.kept_queries.projection import KeptQueries
+from segb_server.backend.services.values import JsonValue, json_value
 from segb_server.backend.store.base import Bindings, Store, select
 
 FOLDER = "reports"
@@ -84,7 +84,7 @@ def _csv_cell(value: JsonValue) -> str:
 
 
 class ReportService:
-    """Reports served from their rows, kept current as the graph changes (services/views/materialized), or,
+    """Reports served from their rows, kept current as the graph changes (services/upkeep/kept_queries), or,
     while those are being built or for a report they cannot follow, by evaluating the report's query."""
 
     def __init__(
@@ -92,7 +92,7 @@ class ReportService:
         catalog: Catalog,
         store: Store,
         cache: ResultCache | None = None,
-        maintainer: ReportMaintainer | None = None,
+        maintainer: KeptQueries | None = None,
     ) -> None:
         self.catalog = catalog
         self.store = store

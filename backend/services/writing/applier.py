@@ -15,15 +15,15 @@ from __future__ import annotations
 
 import logging
 import threading
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from pyoxigraph import Quad, RdfFormat, parse
 
 from segb_server.backend.services.errors import OUTAGES
-from segb_server.backend.services.ingest.journal import Journal, JournalEntry
 from segb_server.backend.services.ops.leadership import Leadership, SharedLeadership
+from segb_server.backend.services.writing.cursor import Cursor
+from segb_server.backend.services.writing.journal import Journal, JournalEntry
 from segb_server.backend.store.base import Store
 
 logger = logging.getLogger("segb.applier")
@@ -70,13 +70,12 @@ class Applier:
         self.store = store
         self.leadership = leadership or Leadership(None)
         self.batch_triples = batch_triples
-        self._applied = 0  # the entry the store is known to be applied through
-        # Whether `_applied` is the store's own cursor, read since start or the last outage; until it is, the
+        self.cursor = Cursor()  # the entry the store is known to be applied through
+        # Whether the cursor is the store's own, read since start or the last outage; until it is, the
         # leader reads it before applying (the store may come back restored or wiped). What was last known
         # stays meanwhile: the backlog and the lag count from it, not from the journal's first entry.
         self._cursor_read = False
         self._apply_lock = threading.Lock()
-        self._progress = threading.Condition()
         self._wake = threading.Event()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -138,7 +137,7 @@ class Applier:
     @property
     def applied(self) -> int:
         """The entry the store is known to be applied through (0 until first read)."""
-        return self._applied
+        return self.cursor.value
 
     def apply_pending(self) -> int:
         """Apply every entry the journal holds beyond the store's cursor; returns the cursor. Raises
@@ -149,7 +148,7 @@ class Applier:
         with self._apply_lock:
             try:
                 self._read_cursor()
-                while entries := self.journal.entries_after(self._applied, ENTRIES_PER_READ):
+                while entries := self.journal.entries_after(self.applied, ENTRIES_PER_READ):
                     for step in self._steps(entries):
                         self._apply(step)
             except OUTAGES as error:
@@ -157,27 +156,13 @@ class Applier:
                 self.last_error = str(error)
                 raise
             self.last_error = None
-            return self._applied
+            return self.cursor.value
 
     def wait_for(self, sequence: int, timeout: float) -> bool:
-        """Wait until entry `sequence` is applied (True), or `timeout` seconds passed (False)."""
-        deadline = time.monotonic() + timeout
-        with self._progress:
-            while self.applied < sequence:
-                remaining = deadline - time.monotonic()
-                if remaining <= 0:
-                    return False
-                if self.leadership.held:
-                    self._progress.wait(remaining)
-                    continue
-                # A follower's progress is the leader's: ask the store, briefly releasing the condition.
-                self._progress.release()
-                try:
-                    self._follow_quietly()
-                    time.sleep(min(WAIT_POLL_SECONDS, remaining))
-                finally:
-                    self._progress.acquire()
-        return True
+        """Wait until entry `sequence` is applied (True), or `timeout` seconds passed (False). A follower's
+        progress is the leader's: it reads the store's cursor while it waits."""
+        poll = None if self.leadership.held else self._follow_quietly
+        return self.cursor.wait_for(sequence, timeout, poll=poll, poll_seconds=WAIT_POLL_SECONDS)
 
     def lag(self) -> tuple[int, float]:
         """Entries not applied yet, and how long the oldest of them has waited (seconds)."""
@@ -189,12 +174,10 @@ class Applier:
     def _follow(self) -> int:
         """Take the store's cursor as this process's progress (it is the leader's)."""
         cursor = self.store.applied_through()
-        with self._progress:
-            # Never backwards: a store behind what was seen applied is one restored or wiped, which the
-            # leader brings up again; meanwhile what this process told its posters stays true of the journal.
-            if cursor is not None and cursor > self.applied:
-                self._applied = cursor
-                self._progress.notify_all()
+        # Never backwards: a store behind what was seen applied is one restored or wiped, which the leader
+        # brings up again; meanwhile what this process told its posters stays true of the journal.
+        if cursor is not None:
+            self.cursor.advance(cursor)
         return self.applied
 
     def _follow_quietly(self) -> None:
@@ -206,7 +189,8 @@ class Applier:
     def _read_cursor(self) -> None:
         """The leader, under `_apply_lock`: once after start and after each outage, the store's own cursor."""
         if not self._cursor_read:
-            self._applied, self._cursor_read = self._starting_point(), True
+            self.cursor.set(self._starting_point())
+            self._cursor_read = True
 
     def _starting_point(self) -> int:
         cursor = self.store.applied_through()
@@ -253,9 +237,7 @@ class Applier:
             quads = quads_of(entries)
             self.store.apply(quads, through)
             step = Applied(entries, quads, cleared=False)
-        with self._progress:
-            self._applied = through
-            self._progress.notify_all()
+        self.cursor.advance(through)
         for listener in self._listeners:
             try:
                 listener(step)

@@ -22,7 +22,7 @@ from datetime import UTC, datetime
 
 from segb_server.backend.services.clock import utc_iso
 from segb_server.backend.services.errors import NotFound, ServiceError
-from segb_server.backend.services.ingest.receipts import (
+from segb_server.backend.services.writing.receipts import (
     FIELD_NAMES,
     GENESIS_HASH,
     ChainCheck,

@@ -14,8 +14,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pyoxigraph import Literal, NamedNode, Quad
 
 from segb_server.backend.services.errors import InvalidParameter, ViewNotReady
-from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, Catalog, paged
-from segb_server.backend.services.views.graph_index import (
+from segb_server.backend.services.graph.index import (
     CATEGORY,
     GENERATED_AT,
     RDF_TYPE,
@@ -25,7 +24,8 @@ from segb_server.backend.services.views.graph_index import (
     display_label,
     local_name,
 )
-from segb_server.backend.services.views.term_values import json_value
+from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, Catalog, paged
+from segb_server.backend.services.values import json_value
 from segb_server.backend.store.base import Store, Term, select
 from segb_server.backend.store.terms import bind_rows
 from segb_server.backend.vocabulary import KINDS, compact, kind_of

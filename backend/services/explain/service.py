@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from segb_server.backend.services.errors import NotFound
-from segb_server.backend.services.views.graph import GraphService, local_name
+from segb_server.backend.services.graph.service import GraphService, local_name
 from segb_server.backend.vocabulary import PREFIXES
 
 SEGB, PROV, SCHEMA, ORO = PREFIXES["segb"], PREFIXES["prov"], PREFIXES["schema"], PREFIXES["oro"]

@@ -9,13 +9,15 @@ from pathlib import Path
 
 from pyoxigraph import DefaultGraph, NamedNode, Quad
 
-from segb_server.backend.services.ingest.applier import Applied
-from segb_server.backend.services.ingest.journal import Journal, JournalEntry
-from segb_server.backend.services.views.projector import (
+from segb_server.backend.services.ingest.service import post_entry
+from segb_server.backend.services.upkeep.delta import Delta
+from segb_server.backend.services.upkeep.keeper import (
     MAX_REST_SECONDS,
     START_WITHIN_SECONDS,
-    Projector,
+    ViewKeeper,
 )
+from segb_server.backend.services.writing.applier import Applied, quads_of
+from segb_server.backend.services.writing.journal import Journal, JournalEntry
 from segb_server.backend.state.sqlite import SqliteDatabase
 from segb_server.backend.store.oxigraph import OxigraphStore
 
@@ -41,7 +43,7 @@ class RecordingView:
     def build(self, through: int) -> None:
         self.built.append(through)
 
-    def update(self, quads: list, through: int) -> None:  # type: ignore[type-arg]
+    def update(self, delta: Delta, through: int) -> None:
         if self.failing:
             raise RuntimeError("a view's bug")
         began = time.monotonic()
@@ -71,7 +73,7 @@ def step(sequence: int) -> Applied:
 def test_a_rest_is_cut_short_for_a_step_that_waited_through_a_slow_batch_and_kept_otherwise(tmp_path: Path) -> None:
     assert BATCH_SECONDS > START_WITHIN_SECONDS and BATCH_SECONDS > MAX_REST_SECONDS
     view = RecordingView("slow", seconds=BATCH_SECONDS)
-    projector = Projector(OxigraphStore("urn:x:graph"), Journal(SqliteDatabase(tmp_path / "journal.sqlite3")), [view])
+    projector = ViewKeeper(OxigraphStore("urn:x:graph"), Journal(SqliteDatabase(tmp_path / "journal.sqlite3")), [view])
     projector.start()
     try:
         projector.on_applied(step(1))
@@ -96,7 +98,7 @@ def test_a_view_whose_catch_up_fails_is_built_again_and_the_others_are_kept(tmp_
     store = OxigraphStore("urn:x:graph")
     store.apply([Quad(NamedNode("urn:x:s"), NamedNode("urn:x:p"), NamedNode("urn:x:o"), DefaultGraph())], through=3)
     broken, kept = RecordingView("broken", failing=True), RecordingView("kept")
-    projector = Projector(store, Journal(SqliteDatabase(tmp_path / "journal.sqlite3")), [broken, kept])
+    projector = ViewKeeper(store, Journal(SqliteDatabase(tmp_path / "journal.sqlite3")), [broken, kept])
     projector.start()
     try:
         assert projector.wait_for(3, timeout=5)  # the views' thread lives on, and every view is ready
@@ -104,3 +106,44 @@ def test_a_view_whose_catch_up_fails_is_built_again_and_the_others_are_kept(tmp_
         assert [through for through, _, _ in kept.updates] == [3] and kept.built == []
     finally:
         projector.stop()
+
+
+def test_steps_queued_past_the_bound_wait_without_their_triples_and_every_triple_reaches_the_views(
+    tmp_path: Path,
+) -> None:
+    """A view far behind (a burst of posts, a slow store) must not make the queue hold every post's triples:
+    past the bound, steps wait as journal numbers and their triples are read back when their turn comes."""
+    journal = Journal(SqliteDatabase(tmp_path / "journal.sqlite3"))
+    posts = [
+        [
+            Quad(NamedNode(f"urn:x:post{n}"), NamedNode("urn:x:p"), NamedNode(f"urn:x:o{k}"), DefaultGraph())
+            for k in range(10)
+        ]
+        for n in range(60)
+    ]
+    journal.append_posts([post_entry(quads, "test", None, "0" * 64) for quads in posts])
+    view = CollectingView("slow", seconds=0.05)
+    keeper = ViewKeeper(OxigraphStore("urn:x:graph"), journal, [view], max_queued_triples=100)
+    keeper.start()
+    try:
+        for entry in journal.entries_after(0, 60):
+            keeper.on_applied(Applied([entry], quads_of([entry]), cleared=False))
+        assert keeper.wait_for(60, timeout=20)
+        assert keeper.most_queued_triples <= 100
+        assert sorted(view.triples) == sorted(
+            quad.subject.value + " " + quad.object.value for post in posts for quad in post
+        )
+    finally:
+        keeper.stop()
+
+
+class CollectingView(RecordingView):
+    """Keeps every triple it is given."""
+
+    def __init__(self, name: str, seconds: float = 0.0) -> None:
+        super().__init__(name, seconds=seconds)
+        self.triples: list[str] = []
+
+    def update(self, delta: Delta, through: int) -> None:
+        self.triples += [quad.subject.value + " " + quad.object.value for quad in delta.quads]
+        super().update(delta, through)

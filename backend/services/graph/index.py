@@ -1,4 +1,4 @@
-"""The drawable graph kept as indexed rows, current with each applied journal step (a `Projection`).
+"""The drawable graph kept as indexed rows, current with each applied journal step (a `KeptView`).
 
 What is drawn: every link between two resources (`rdf:type` gives node types instead) and the literals that
 name and place nodes (`DRAWN_LITERALS`); other literals stay in node details (`GET /resource`). The facts are
@@ -24,10 +24,11 @@ from typing import Any
 
 from pyoxigraph import Literal, NamedNode, Quad
 
-from segb_server.backend.services.views.database import ViewDatabase
-from segb_server.backend.services.views.neighbourhoods import MAX_KEPT_REACH, KeptNeighbourhoods
-from segb_server.backend.services.views.signal import ChangeSignal
-from segb_server.backend.services.views.term_values import iso_time
+from segb_server.backend.services.graph.neighbourhoods import MAX_KEPT_REACH, KeptNeighbourhoods
+from segb_server.backend.services.upkeep.database import ViewDatabase
+from segb_server.backend.services.upkeep.delta import Delta
+from segb_server.backend.services.upkeep.signal import ChangeSignal
+from segb_server.backend.services.values import iso_time
 from segb_server.backend.store.base import Store, Term
 from segb_server.backend.vocabulary import KINDS, PREFIXES, Kind, compact, kind_of
 
@@ -138,7 +139,7 @@ class GraphIndex:
         self._drawing_first_view = False  # the keeper is drawing a changed first view
         self._neighbourhoods = KeptNeighbourhoods()
 
-    # --- Projection ----------------------------------------------------------------------------------
+    # --- KeptView ----------------------------------------------------------------------------------
 
     def stored_through(self) -> int | None:
         row = self.db.reader().execute("SELECT version, through FROM graph_state").fetchone()
@@ -170,7 +171,8 @@ class GraphIndex:
         self.changed.notify()
         logger.info("graph index built: %d nodes", len(iris))
 
-    def update(self, quads: list[Quad], through: int) -> None:
+    def update(self, delta: Delta, through: int) -> None:
+        quads = delta.quads
         with self.db.writing() as connection:
             cutoff = _first_view_cutoff(connection)
             before = _node_rows(connection, _subjects_and_targets(quads))

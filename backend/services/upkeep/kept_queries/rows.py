@@ -23,11 +23,11 @@ from pyoxigraph import NamedNode
 
 from segb_server.backend.services.errors import InvalidParameter
 from segb_server.backend.services.sparql.catalog import Parameter
-from segb_server.backend.services.views.database import ViewDatabase
-from segb_server.backend.services.views.materialized.encoding import filter_value, sort_key
-from segb_server.backend.services.views.materialized.plan import ReportPlan
-from segb_server.backend.services.views.signal import ChangeSignal
-from segb_server.backend.services.views.term_values import JsonValue, iso_time, json_value
+from segb_server.backend.services.upkeep.database import ViewDatabase
+from segb_server.backend.services.upkeep.kept_queries.encoding import filter_value, sort_key
+from segb_server.backend.services.upkeep.kept_queries.plan import ReportPlan
+from segb_server.backend.services.upkeep.signal import ChangeSignal
+from segb_server.backend.services.values import JsonValue, iso_time, json_value
 from segb_server.backend.store.base import Term
 from segb_server.backend.store.terms import term_text
 
@@ -84,8 +84,8 @@ class Layout:
             # The whole sort key: a filtered page is sorted from this index alone (see `page`).
             statements.append(f"CREATE INDEX IF NOT EXISTS {self.table}_{sql} ON {self.table} ({sql}, ord, unit, n)")
         if self.plan.is_aggregate:
-            for index, aggregate in enumerate(self.plan.aggregates):
-                if aggregate.function != "count":  # a group's extreme is read from its index (`_regroup`)
+            for index, kept in enumerate(self.plan.aggregates):
+                if kept.function != "count":  # a group's extreme is read from its index (`_regroup`)
                     statements.append(
                         f"CREATE INDEX IF NOT EXISTS {self.table}_g{index} ON {self.table} (ord, g_{index})"
                     )
@@ -126,7 +126,7 @@ class Layout:
 OWN_TABLES = ("report_state", "report_changes")  # the database's own, beside each report's tables
 
 
-class ReportRows:
+class KeptRows:
     """Every materialised report's rows in one SQLite database (a file in the data directory, or temporary)."""
 
     def __init__(self, path: Path | None) -> None:

@@ -1,0 +1,1 @@
+"""The causal story around one message, activity, emotion or state."""

@@ -1,0 +1,60 @@
+"""The facets of a kept query's filters: for a filter `FILTER (!BOUND(?param_x) || EXISTS { … })`, the values
+of the parameter each row's anchor (the one column the EXISTS mentions) has, kept as pairs so a filtered page
+is an index lookup."""
+
+from __future__ import annotations
+
+from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX
+from segb_server.backend.services.upkeep.delta import Delta, Fact
+from segb_server.backend.services.upkeep.kept_queries.keys import VALUES_PER_QUERY, PatternMatch, narrowing
+from segb_server.backend.services.upkeep.kept_queries.plan import FacetFilter, Pattern, ReportPlan
+from segb_server.backend.store.base import Store, select
+from segb_server.backend.store.terms import term_text
+
+
+class FacetPairs:
+    """The (anchor, value) pairs of a facet filter that new triples add. A facet's EXISTS bodies are joins of
+    triple patterns with no negation, so its pairs only grow as triples arrive: the new ones are those where a
+    new triple matches one of a body's patterns, found by binding that pattern to the triple and joining the
+    rest of the body (the delta rule). A post's cost is what its own triples join with, never every pair of the
+    anchor they reach (a robot's: every activity it ever performed)."""
+
+    def __init__(self, plan: ReportPlan, facet: FacetFilter) -> None:
+        self.plan = plan
+        self.facet = facet
+        self.parameter = f"?{PARAMETER_VARIABLE_PREFIX}{facet.parameter}"
+        self._matches = [(PatternMatch(plan, pattern), body) for body in facet.bodies for pattern in body]
+
+    def all_pairs(self, store: Store) -> list[tuple[str, str]]:
+        """Every pair in the store (one query per EXISTS body)."""
+        return sorted({pair for body in self.facet.bodies for pair in self._pairs(store, body, "")})
+
+    def new_pairs(self, delta: Delta, store: Store) -> list[tuple[str, str]]:
+        """The pairs in which one of the new triples (just added to the store) takes part."""
+        pairs: set[tuple[str, str]] = set()
+        for match, body in self._matches:
+            facts: list[Fact] = match.facts(delta)
+            if not facts:
+                continue
+            names = sorted(match.pattern.variables())
+            rows = sorted({"(" + " ".join(match.text(fact, name) for name in names) + ")" for fact in facts})
+            for start in range(0, len(rows), VALUES_PER_QUERY):
+                values = " ".join(rows[start : start + VALUES_PER_QUERY])
+                pairs.update(self._pairs(store, body, f"VALUES ({' '.join(names)}) {{ {values} }} "))
+        return sorted(pairs)
+
+    def _pairs(self, store: Store, body: tuple[Pattern, ...], values: str) -> set[tuple[str, str]]:
+        patterns = " ".join(pattern.sparql() for pattern in body)
+        where = f"{values}{narrowing(self.plan, body)}{patterns}"
+        found = set()
+        for row in select(store, f"SELECT DISTINCT {self.facet.anchor} {self.parameter} WHERE {{ {where} }}").rows:
+            anchor, value = row.get(self.facet.anchor[1:]), row.get(self.parameter[1:])
+            if anchor is not None and value is not None:
+                found.add((term_text(anchor), term_text(value)))
+        return found
+
+
+def facet_patterns(plan: ReportPlan) -> frozenset[Pattern]:
+    """The patterns of facet filters' EXISTS bodies: they decide which rows a filter keeps (the facets table),
+    never what a row holds."""
+    return frozenset(pattern for facet in plan.facet_filters for body in facet.bodies for pattern in body)

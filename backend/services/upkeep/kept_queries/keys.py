@@ -1,0 +1,201 @@
+"""Which rows of a kept query new triples can change: for each triple pattern of the query that a new triple
+matches, the patterns sure to hold with it lead back to the row keys (units) it can change — a chain of steps
+found once when the query is planned, asked of the store with the triple's terms bound (one small query).
+
+A chain starts from the matched triple's subject when it can: a triple's object is often a hub (a robot, a
+model, a human), and a chain from it would reach every unit of that hub, where one from the subject reaches
+the units of this one triple.
+"""
+
+from __future__ import annotations
+
+import re
+from collections import deque
+from dataclasses import dataclass
+
+from segb_server.backend.services.upkeep.delta import Delta, Fact
+from segb_server.backend.services.upkeep.kept_queries.plan import Pattern, ReportPlan, Unsupported
+from segb_server.backend.store.base import Store, select
+from segb_server.backend.store.terms import term_text
+
+VALUES_PER_QUERY = 300
+BRANCHES_PER_QUERY = 12  # key-finding chains asked in one query
+
+
+class PatternMatch:
+    """The new triples one pattern matches: those whose predicate is one of its own, whose terms equal its
+    constants, and whose terms are among the values its group allows a variable (e.g. `?target a ?class` where
+    `VALUES ?class { … }` lists the classes of people: the types of every other resource a post describes
+    match nothing)."""
+
+    def __init__(self, plan: ReportPlan, pattern: Pattern) -> None:
+        self.pattern = pattern
+        self._predicates = sorted(pattern.predicates)
+        self._subject = None if pattern.subject.startswith("?") else pattern.subject
+        self._object = None if pattern.object.startswith("?") else pattern.object
+        self._subjects = plan.narrowed.get((pattern.group, pattern.subject)) if self._subject is None else None
+        self._objects = plan.narrowed.get((pattern.group, pattern.object)) if self._object is None else None
+
+    def facts(self, delta: Delta) -> list[Fact]:
+        found = []
+        for predicate in self._predicates:
+            for fact in delta.with_predicate(predicate, self._object):
+                if self._subject is not None and fact.subject_text != self._subject:
+                    continue
+                if self._subjects is not None and fact.subject_text not in self._subjects:
+                    continue
+                if self._objects is not None and fact.object_text not in self._objects:
+                    continue
+                found.append(fact)
+        return found
+
+    def text(self, fact: Fact, variable: str) -> str:
+        """The N-Triples text `variable` takes when this pattern matches `fact`."""
+        return fact.subject_text if variable == self.pattern.subject else fact.object_text
+
+    def binds_literal(self, fact: Fact, variables: tuple[str, ...]) -> bool:
+        return fact.literal_object and self.pattern.object in variables
+
+
+class KeyFinder:
+    """The units (values of `?unit`, as N-Triples text) that new triples may change, for one plan. The chains from
+    each of the plan's patterns to the unit are found once, when the query is planned (Unsupported when a
+    pattern has none): a batch then costs only the matching and the queries. Triples matching only `ignored`
+    patterns change no unit."""
+
+    def __init__(self, plan: ReportPlan, unit: str, ignored: frozenset[Pattern] = frozenset()) -> None:
+        self.plan = plan
+        self.unit = unit
+        self.target = f"?{unit}"
+        self._leads = [
+            _Lead(PatternMatch(plan, pattern),
+                  [] if self.target in pattern.variables() else _chains(plan, pattern, self.target))
+            for pattern in plan.patterns
+            if pattern not in ignored
+        ]  # fmt: skip
+
+    def units(self, delta: Delta, store: Store) -> set[str]:
+        units: set[str] = set()
+        branches: list[str] = []  # asked together
+        alone: list[str] = []  # asked one by one
+        for lead in self._leads:
+            facts = lead.match.facts(delta)
+            if not facts:
+                continue
+            if not lead.chains:
+                units.update(lead.match.text(fact, self.target) for fact in facts)
+                continue
+            # One branch per chain, each opening with its own VALUES: they must bind the chain's own group (a BIND
+            # in a UNION branch would not see VALUES outside it, and the branch would reach every unit of the store).
+            for chain in lead.chains:
+                rows: dict[str, bool] = {}  # a VALUES row → whether it binds a literal
+                for fact in facts:
+                    row = "(" + " ".join(lead.match.text(fact, name) for name in chain.names) + ")"
+                    rows[row] = rows.get(row, False) or lead.match.binds_literal(fact, chain.names)
+                listed = list(rows.items())
+                for start in range(0, len(listed), VALUES_PER_QUERY):
+                    chunk = listed[start : start + VALUES_PER_QUERY]
+                    values = " ".join(row for row, _ in chunk)
+                    branch = f"{{ VALUES ({' '.join(chain.names)}) {{ {values} }} {chain.steps} }}"
+                    # Virtuoso 7 fails a UNION whose branch binds a literal ("Unknown language in
+                    # RDF_LANGUAGE_OF_OBJ"): such a branch is asked alone.
+                    (alone if any(literal for _, literal in chunk) else branches).append(branch)
+        # The others together: a remote store costs a round trip per query, and a batch touches a handful of them.
+        queries = [[branch] for branch in alone]
+        queries += [branches[at : at + BRANCHES_PER_QUERY] for at in range(0, len(branches), BRANCHES_PER_QUERY)]
+        for group in queries:
+            union = " UNION ".join(group)
+            answer = select(store, f"SELECT DISTINCT {self.target} WHERE {{ {union} }}")
+            units.update(term_text(row[self.unit]) for row in answer.rows if self.unit in row)
+        return units
+
+
+@dataclass(frozen=True)
+class _Chain:
+    steps: str  # the SPARQL steps from the pattern's variables to the unit
+    names: tuple[str, ...]  # the pattern's variables the steps go on from (bound by VALUES)
+
+
+@dataclass(frozen=True, eq=False)
+class _Lead:
+    """A pattern, and the chains from its variables to the unit (none: the pattern holds the unit itself)."""
+
+    match: PatternMatch
+    chains: list[_Chain]
+
+
+def _chains(plan: ReportPlan, pattern: Pattern, target: str) -> list[_Chain]:
+    chains = []
+    for path in paths(plan, pattern, target):
+        # Only the variables the chain goes on from: a chain from a triple's subject needs no VALUES of its
+        # object, and leaving a literal object out lets the branch join the others' UNION.
+        names = sorted(name for name in pattern.variables() if _mentions(path, name)) or sorted(pattern.variables())
+        chains.append(_Chain(" ".join(path), tuple(names)))
+    return chains
+
+
+def _mentions(path: list[str], variable: str) -> bool:
+    """Whether a chain's steps use `variable` (`?t` is not in `?text`)."""
+    used = re.compile(re.escape(variable) + r"(?![A-Za-z0-9_])")
+    return any(used.search(step) for step in path)
+
+
+def paths(plan: ReportPlan, start: Pattern, target: str) -> list[list[str]]:
+    """Chains of SPARQL steps from `start`'s variables to `target`, each made of patterns that hold whenever
+    `start` is matched (one chain per UNION branch it may have come through) and of BIND aliases. Unsupported
+    when there is none."""
+    base = [pattern for pattern in plan.guaranteed_patterns(start) if pattern is not start]
+    # From the subject first: a triple's object is often a hub (a robot, a model, a human), and a chain from it
+    # reaches every unit of that hub, where a chain from the subject reaches the units of this one triple.
+    for sources in _sources(start):
+        found = _shortest(sources, base, plan.aliases, target)
+        if found is not None:
+            return [found]
+    chains = [
+        chain
+        for branch in plan.branch_choices(start)
+        for sources in _sources(start)[-1:]
+        if (chain := _shortest(sources, base + branch, plan.aliases, target))
+    ]
+    if not chains:
+        raise Unsupported(f"no path from {start.sparql()} to {target}")
+    return chains
+
+
+def _sources(start: Pattern) -> list[set[str]]:
+    """The variables a chain may start from, tried in turn: the subject alone, then any of them."""
+    subject_only = [{start.subject}] if start.subject.startswith("?") and len(start.variables()) > 1 else []
+    return [*subject_only, start.variables()]
+
+
+def _shortest(
+    sources: set[str], usable: list[Pattern], aliases: list[tuple[str, str]], target: str
+) -> list[str] | None:
+    """Breadth first over variables from `sources`: a pattern joins its variables; an alias binds one from the
+    other."""
+    frontier: deque[tuple[str, list[str]]] = deque((variable, []) for variable in sorted(sources))
+    seen = set(sources)
+    while frontier:
+        variable, path = frontier.popleft()
+        if variable == target:
+            return path
+        steps = [(other, pattern.sparql()) for pattern in usable if variable in pattern.variables()
+                 for other in pattern.variables() - {variable}]  # fmt: skip
+        steps += [(b if a == variable else a, f"BIND ({variable} AS {b if a == variable else a})")
+                  for a, b in aliases if variable in (a, b)]  # fmt: skip
+        for other, step in steps:
+            if other not in seen:
+                seen.add(other)
+                frontier.append((other, [*path, step]))
+    return None
+
+
+def narrowing(plan: ReportPlan, body: tuple[Pattern, ...]) -> str:
+    """The VALUES an EXISTS body narrows its variables with (`VALUES ?kind { foaf:Person }`), which its patterns
+    alone do not say."""
+    groups = {pattern.group for pattern in body}
+    return "".join(
+        f"VALUES {variable} {{ {' '.join(sorted(allowed))} }} "
+        for (group, variable), allowed in sorted(plan.narrowed.items())
+        if group in groups
+    )

@@ -1,1 +1,0 @@
-"""What auditors read: reports, the drawable graph, explanations, exports."""

@@ -1,0 +1,135 @@
+"""The write path in one place: journal → applier (the store) → keeper (the views), and who does which.
+
+A post is recorded in the journal (durable, hash-chained); the applier writes the journal into the store in
+order; the views' keeper brings every view (the reports' rows, the graph index, …) up to each applied step.
+With several API processes, one among all that share the journal applies (`apply_leadership`: a file lock,
+or an advisory lock in PostgreSQL when the state is there), and one per data directory keeps the views
+(`views_leadership`); the others follow what the leaders did. What the rest of the server needs of all this
+is here: wait until a post is applied or viewed, how far behind each stage is, and what is on its way.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from pyoxigraph import Quad
+
+from segb_server.backend.config import Settings
+from segb_server.backend.services.ops.leadership import LOCK_FILE, Leadership, SharedLeadership
+from segb_server.backend.services.upkeep.keeper import KeptView, ViewKeeper
+from segb_server.backend.services.writing.applier import Applied, Applier
+from segb_server.backend.services.writing.journal import JOURNAL_FILE, Journal
+from segb_server.backend.state.opening import open_state
+from segb_server.backend.store.base import Store
+
+
+@dataclass(frozen=True)
+class Lag:
+    """How far the store and the views are behind: entries, and how long the oldest missing one has waited."""
+
+    apply_entries: int
+    apply_seconds: float
+    views_entries: int
+    views_seconds: float
+
+
+class WritePath:
+    @classmethod
+    def open(
+        cls,
+        settings: Settings,
+        store: Store,
+        views: list[KeptView],
+        housekeeping: Callable[[], None] | None = None,
+    ) -> WritePath:
+        """The journal of `settings` (SQLite in the data directory, PostgreSQL with STATE_URL, memory with
+        STORE=memory), its applier into `store`, and the keeper of `views`; nothing started yet.
+        `housekeeping`: run once the views are ready, by the process that keeps them."""
+        in_memory = settings.store == "memory"  # nothing of such a server is meant to be written
+        journal = Journal(
+            open_state(
+                settings.state_url,
+                None if in_memory else settings.data_dir / JOURNAL_FILE,
+                writers="journal",
+                sync_full=settings.journal_sync == "full",
+            ),
+            max_bytes=settings.journal_max_bytes,
+        )
+        views_leadership = Leadership(None if in_memory else settings.data_dir / LOCK_FILE)
+        apply_leadership = SharedLeadership(settings.state_url, "applier") if settings.state_url else views_leadership
+        applier = Applier(journal, store, batch_triples=settings.apply_batch_triples, leadership=apply_leadership)
+        keeper = ViewKeeper(store, journal, views, views_leadership, applier, housekeeping)
+        applier.on_applied(keeper.on_applied)
+        return cls(journal, applier, keeper, apply_leadership, views_leadership)
+
+    def __init__(
+        self,
+        journal: Journal,
+        applier: Applier,
+        keeper: ViewKeeper,
+        apply_leadership: Leadership | SharedLeadership,
+        views_leadership: Leadership,
+    ) -> None:
+        self.journal = journal
+        self.applier = applier
+        self.keeper = keeper
+        self.apply_leadership = apply_leadership
+        self.views_leadership = views_leadership
+
+    def start(self) -> None:
+        """Start the background work of a serving API: applying the journal and keeping the views current (or,
+        where another process leads, following it)."""
+        self.apply_leadership.try_acquire()
+        self.views_leadership.try_acquire()
+        self.applier.start()
+        self.keeper.start()
+
+    def close(self) -> None:
+        self.applier.stop()
+        self.keeper.stop()
+        self.journal.close()
+        self.apply_leadership.release()
+        self.views_leadership.release()
+
+    def on_applied(self, listener: Callable[[Applied], None]) -> None:
+        """Call `listener` after each step the applier writes to the store (in its thread)."""
+        self.applier.on_applied(listener)
+
+    # --- what posts and readers wait for -------------------------------------------------------------
+
+    @property
+    def applied(self) -> int:
+        """The journal entry the store is known to be applied through."""
+        return self.applier.applied
+
+    def backlog(self) -> int:
+        """Journal entries the store has not applied yet."""
+        return self.journal.head() - self.applier.applied
+
+    def entries_written(self) -> None:
+        """New entries are in the journal: the applier takes them in its own thread."""
+        self.applier.notify()
+
+    def apply_now(self) -> None:
+        """Apply what is pending in the calling thread (a post acknowledged once stored applies its own entry
+        rather than hand it to the applier's thread and wait: a thread hop less). Raises the store's outage."""
+        self.applier.apply_pending()
+
+    def wait_applied(self, sequence: int, timeout: float) -> bool:
+        return self.applier.wait_for(sequence, timeout)
+
+    def wait_viewed(self, sequence: int, timeout: float) -> bool:
+        """Wait until every view includes entry `sequence` (True), or `timeout` seconds passed."""
+        return self.keeper.wait_for(sequence, timeout)
+
+    def lag(self) -> Lag:
+        apply_entries, apply_seconds = self.applier.lag()
+        views_entries, views_seconds = self.keeper.lag(self.applier.applied)
+        return Lag(apply_entries, apply_seconds, views_entries, views_seconds)
+
+    def on_the_way(self, limit: int) -> list[Quad] | None:
+        """The triples the store has and the views do not have yet (a reader adds them to what a view holds to
+        answer as the store would); None when they cannot stand in for the store (a clearing among them, or
+        more than `limit` entries)."""
+        return self.keeper.pending(self.applier.applied, limit)
