@@ -128,7 +128,7 @@ class KeptQuery:
     def build(self, through: int) -> None:
         self.rows.create(self.layout, fresh=True)
         rows = self._evaluate(None)
-        self.rows.replace(self.layout, rows, rows, through)
+        self.rows.replace(self.layout, rows, rows, through, announce=False)
         for delta in self.facets:
             self.rows.add_facets(self.layout, delta.facet.parameter, delta.all_pairs(self.store))
         self.rows.set_state(self.name, self.fingerprint, through)

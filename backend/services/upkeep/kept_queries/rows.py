@@ -236,8 +236,11 @@ class KeptRows:
             for statement in layout.schema():
                 connection.execute(statement)
 
-    def replace(self, layout: Layout, units: Iterable[str], rows: dict[str, list[Row]], through: int) -> None:
-        """The rows of `units` are now `rows[unit]` (none for a unit that has no rows any more)."""
+    def replace(
+        self, layout: Layout, units: Iterable[str], rows: dict[str, list[Row]], through: int, *, announce: bool = True
+    ) -> None:
+        """The rows of `units` are now `rows[unit]` (none for a unit that has no rows any more); `announce`: the
+        change goes to the live streams (a build's rows are not a change a reader could follow)."""
         units = list(units)
         placeholders = ", ".join(["?"] * layout.column_count)
         with self.db.writing() as connection:
@@ -260,10 +263,11 @@ class KeptRows:
             connection.executemany(f"INSERT INTO {layout.table} VALUES ({placeholders})", records)
             if layout.plan.is_aggregate:
                 _regroup(connection, layout, left, joined)
-            connection.executemany(
-                "INSERT INTO report_changes (report, unit, through) VALUES (?, ?, ?)",
-                [(layout.plan.name, unit, through) for unit in units],
-            )
+            if announce:
+                connection.executemany(
+                    "INSERT INTO report_changes (report, unit, through) VALUES (?, ?, ?)",
+                    [(layout.plan.name, unit, through) for unit in units],
+                )
 
     def add_facets(self, layout: Layout, parameter: str, pairs: list[tuple[str, str]]) -> None:
         """A facet's pairs only grow as triples arrive (a clearing empties them with the rest)."""
