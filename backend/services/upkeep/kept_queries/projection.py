@@ -190,17 +190,11 @@ def _term(text: str) -> Term:
 
 
 def _projection(query: CatalogQuery, plan: ReportPlan, store: Store, rows: KeptRows) -> KeptQuery:
+    unit = plan.unit()
     if plan.is_aggregate:
-        counted = [a for a in plan.aggregates if a.function == "count" and a.distinct]
-        if len(counted) != 1:
-            raise Unsupported("an aggregate report needs one COUNT(DISTINCT ?x) to keep its contributions by")
-        unit = counted[0].argument[1:]
-        inputs = dict.fromkeys([*plan.group_by, counted[0].argument, *(a.argument for a in plan.aggregates)])
+        inputs = dict.fromkeys([*plan.group_by, f"?{unit}", *(a.argument for a in plan.aggregates)])
         text = _before_grouping(query.text, list(inputs))
     else:
-        if len(plan.key) != 1:
-            raise Unsupported("a report's key is one variable")
-        unit = plan.key[0][1:]
         text = query.text
     layout = Layout(f"report_{re.sub(r'[^a-z0-9]', '_', query.name.lower())}", plan, query.parameters, unit)
     # The tables' schema counts too: rows stored in another layout are built again, not read.
