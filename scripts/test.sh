@@ -25,5 +25,6 @@ fi
 
 pip=(python3 -m pip install -q --disable-pip-version-check)
 "${pip[@]}" --require-hashes -r requirements-test.lock
-"${pip[@]}" --no-deps -e .
+# The build backend (setuptools) comes from the lock too: no build isolation fetching it unpinned.
+"${pip[@]}" --no-deps --no-build-isolation -e .
 exec python3 -m pytest "$@"
