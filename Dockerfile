@@ -1,4 +1,3 @@
-# syntax=docker/dockerfile:1
 # One image for the SEGB API and UI (compose runs it twice with different commands).
 # Both stages use the same base, so the virtual environment built in the first runs unchanged in the second.
 ARG PYTHON_IMAGE=python:3.11-slim

@@ -87,6 +87,13 @@ def test_build_stage_builds_the_project_with_the_locked_build_tools_only() -> No
         assert requirement.specifier.contains(version) and hashes > 0, f"{name}=={version} ≠ {requirement}"
 
 
+def test_dockerfile_names_no_frontend_so_buildkit_needs_no_registry() -> None:
+    """A `# syntax=` parser directive makes every BuildKit build fetch that frontend image first, which fails
+    offline or behind a registry mirror; the built-in frontend reads this Dockerfile."""
+    leading = [line for line in (ROOT / "Dockerfile").read_text().splitlines() if line.startswith("#")]
+    assert not [line for line in leading if re.match(r"#\s*syntax\s*=", line, re.IGNORECASE)]
+
+
 def test_final_stage_runs_unprivileged_on_the_same_base_without_build_tools() -> None:
     stage = final_stage()
     assert stage[0].arguments == build_stage()[0].arguments.split(" AS ")[0]  # the venv's Python is the same
