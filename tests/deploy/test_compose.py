@@ -75,6 +75,8 @@ def test_config_resolves_the_four_services_with_the_example_env(compose: dict[st
     assert "ports" not in services["backend"] and "container_name" not in services["backend"]
     assert services["proxy"]["ports"] == [{"published": 5000, "target": 5000}]
     assert services["ui"]["ports"] == [{"published": 8080, "target": 8080}]
+    # Built by `up`, never pulled: no registry has segb-server:local.
+    assert services["backend"]["pull_policy"] == services["ui"]["pull_policy"] == "build"
     assert services["backend"]["depends_on"] == {"virtuoso": HEALTHY}
     assert services["proxy"]["depends_on"] == {"backend": HEALTHY}
     assert services["ui"]["depends_on"] == {"proxy": HEALTHY}
