@@ -16,6 +16,7 @@ import subprocess
 from collections.abc import Iterator
 from contextlib import ExitStack
 from dataclasses import dataclass
+from ipaddress import ip_address, ip_network
 from pathlib import Path
 from typing import Any
 
@@ -101,7 +102,12 @@ def test_config_passes_the_example_env_to_the_containers(compose: dict[str, Any]
     assert backend["VIRTUOSO_ENDPOINT"] == "http://virtuoso:8890/sparql-auth"
     assert backend["VIRTUOSO_PASSWORD"] == example["VIRTUOSO_PASSWORD"]
     assert backend["SECRET_KEY"] == ""  # auth off in the example
-    assert backend["FORWARDED_ALLOW_IPS"] == "*"  # only the proxy reaches it
+    # The backend believes the X-Forwarded-For of the proxy's fixed address only, inside the stack's own subnet.
+    proxy_address = services["proxy"]["networks"]["default"]["ipv4_address"]
+    assert backend["FORWARDED_ALLOW_IPS"] == proxy_address
+    [addresses] = compose["networks"]["default"]["ipam"]["config"]
+    assert ip_address(proxy_address) in ip_network(addresses["subnet"])
+    assert ip_address(proxy_address) not in ip_network(addresses["ip_range"])  # never given to another container
     assert "STATE_URL" not in backend  # SQLite in the shared volume unless docker-compose.postgres.yaml is added
     assert services["ui"]["environment"]["BACKEND_URL"] == "http://proxy:5000"
     assert "VIRTUOSO_PASSWORD" not in services["ui"]["environment"]  # the UI holds no store credentials
