@@ -23,6 +23,7 @@ from typing import Any
 import httpx
 import psycopg
 import pytest
+import yaml
 
 from tests.support.compose import (
     COMPOSE_FILE,
@@ -74,8 +75,9 @@ def test_config_resolves_the_four_services_with_the_example_env(compose: dict[st
     assert "ports" not in services["virtuoso"]  # Virtuoso is reached by the backend only
     # The backend is published through the proxy only and names no container: `--scale backend=N` works.
     assert "ports" not in services["backend"] and "container_name" not in services["backend"]
-    assert services["proxy"]["ports"] == [{"published": 5000, "target": 5000}]
-    assert services["ui"]["ports"] == [{"published": 8080, "target": 8080}]
+    # Published on this machine's loopback only, unless PUBLISH_ADDRESS says otherwise.
+    assert services["proxy"]["ports"] == ["127.0.0.1:5000:5000/tcp"]
+    assert services["ui"]["ports"] == ["127.0.0.1:8080:8080/tcp"]
     # Built by `up`, never pulled: no registry has segb-server:local.
     assert services["backend"]["pull_policy"] == services["ui"]["pull_policy"] == "build"
     assert services["backend"]["depends_on"] == {"virtuoso": HEALTHY}
@@ -147,6 +149,15 @@ def test_the_postgres_override_without_its_password_fails_naming_it(tmp_path: Pa
     result = run_compose_config(tmp_path, env, (COMPOSE_FILE, POSTGRES_OVERRIDE))
     assert result.returncode != 0
     assert "set POSTGRES_PASSWORD in .env to use docker-compose.postgres.yaml" in result.stderr
+
+
+def test_config_publishes_on_the_address_chosen_in_the_env(tmp_path: Path) -> None:
+    env = ENV_EXAMPLE.read_text().replace("PUBLISH_ADDRESS=127.0.0.1", "PUBLISH_ADDRESS=0.0.0.0")
+    result = run_compose_config(tmp_path, env)
+    assert result.returncode == 0, result.stderr
+    services = yaml.safe_load(result.stdout)["services"]
+    assert services["proxy"]["ports"] == ["0.0.0.0:5000:5000/tcp"]
+    assert services["ui"]["ports"] == ["0.0.0.0:8080:8080/tcp"]
 
 
 def test_config_without_the_virtuoso_password_fails_naming_it(tmp_path: Path) -> None:
