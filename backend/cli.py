@@ -153,6 +153,7 @@ def _serve(args: argparse.Namespace) -> int:
         hand_down,
         serve,
         serve_api_workers,
+        warn_when_open,
     )
 
     configure_logging(settings)
@@ -161,6 +162,7 @@ def _serve(args: argparse.Namespace) -> int:
         return _fail("--demo fills the API's store: drop --only ui")
     if args.only in (None, "api"):
         _check_catalog(settings)
+        warn_when_open(settings)
     try:
         check_shareable(settings, demo=args.demo)
     except WorkersRefused as refused:

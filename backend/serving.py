@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import ipaddress
 import logging
 import multiprocessing
 import os
@@ -25,6 +26,8 @@ from segb_server.backend.config import Settings
 
 if TYPE_CHECKING:
     from fastapi import FastAPI
+
+logger = logging.getLogger("segb.serve")
 
 APP_FACTORY = "segb_server.backend.serving:worker_app"
 SHARED_STORES = ("virtuoso", "sparql")
@@ -60,6 +63,30 @@ def check_shareable(settings: Settings, *, demo: bool) -> None:
         )
     if settings.api_workers > 1 and demo:
         raise WorkersRefused("--demo loads the demo in one process: run one worker, or `segb demo` once it is up")
+
+
+def listens_beyond_this_machine(host: str) -> bool:
+    """Whether HOST lets other machines connect: anything but a loopback address or `localhost`."""
+    if host == "localhost":
+        return False
+    try:
+        return not ipaddress.ip_address(host).is_loopback
+    except ValueError:  # a host name: it names some interface
+        return True
+
+
+def warn_when_open(settings: Settings) -> None:
+    """Say loudly that an API without authentication listens where other machines may reach it."""
+    if settings.auth_enabled or not listens_beyond_this_machine(settings.host):
+        return
+    logger.warning(
+        "AUTHENTICATION IS OFF (SECRET_KEY is empty) and the API listens on %s: anyone who can reach port %d can "
+        "publish, read and delete every log. Set SECRET_KEY (32+ random characters) to require tokens, or listen "
+        "on 127.0.0.1 (HOST). With docker compose, PUBLISH_ADDRESS (127.0.0.1 unless changed) decides which "
+        "machines reach the published port.",
+        settings.host,
+        settings.api_port,
+    )
 
 
 def hand_down(overrides: Mapping[str, object]) -> None:
