@@ -12,11 +12,13 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import errno
 import ipaddress
 import logging
 import multiprocessing
 import os
 import signal
+import tempfile
 from collections.abc import Iterator, Mapping
 from typing import TYPE_CHECKING, Any
 
@@ -87,6 +89,35 @@ def warn_when_open(settings: Settings) -> None:
         settings.host,
         settings.api_port,
     )
+
+
+class DataDirUnwritable(ValueError):
+    """The server cannot write its files in DATA_DIR."""
+
+
+def check_data_dir(settings: Settings) -> None:
+    """Fail with what to do, before serving, when DATA_DIR cannot be written (a root-owned folder mounted on a
+    container's /data, whose server runs as an unprivileged user)."""
+    if settings.store == "memory":
+        return  # nothing is kept on disk
+    folder = settings.data_dir
+    places = (folder, folder / "logs")  # the server log is the first file written
+    try:
+        places[-1].mkdir(parents=True, exist_ok=True)
+        for place in places:
+            with tempfile.TemporaryFile(dir=place):
+                pass
+        # Files left by another user (an image that ran as root) are refused when opened, later: say so now.
+        for path in (path for place in places for path in place.iterdir()):
+            if not os.access(path, os.W_OK):
+                raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), str(path))
+    except OSError as error:
+        uid, gid = os.geteuid(), os.getegid()
+        raise DataDirUnwritable(
+            f"DATA_DIR {folder} is not writable by this server's user, uid {uid} ({error.strerror}: "
+            f"{error.filename}): give the folder to that user: `sudo chown -R {uid}:{gid} {folder}` (for a host "
+            f"folder mounted on {folder} in a container, run it on the host folder)"
+        ) from error
 
 
 def hand_down(overrides: Mapping[str, object]) -> None:

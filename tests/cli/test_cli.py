@@ -118,6 +118,30 @@ def test_serve_without_auth_on_every_interface_warns_loudly(tmp_path: Path) -> N
     assert "Set SECRET_KEY" in warning and "PUBLISH_ADDRESS" in warning
 
 
+def test_serve_says_how_to_make_an_unwritable_data_dir_writable(tmp_path: Path) -> None:
+    """A folder the server's user cannot write (a root-owned host folder on a container's /data): one line
+    saying which folder, which user and the command that fixes it, and no traceback."""
+    data = tmp_path / "data"
+    data.mkdir()
+    data.chmod(0o555)
+    # As root, without the capability that lets root write anywhere, as the image's user would be refused.
+    unprivileged = ["setpriv", "--bounding-set=-dac_override,-dac_read_search"] if os.geteuid() == 0 else []
+    result = subprocess.run(
+        [*unprivileged, *SEGB, "serve", "--only", "api", "--data-dir", str(data)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=clean_env(),
+    )
+    assert result.returncode == 2, result.stderr
+    uid, gid = os.geteuid(), os.getegid()
+    assert result.stderr.splitlines() == [
+        f"segb: error: DATA_DIR {data} is not writable by this server's user, uid {uid} (Permission denied: "
+        f"{data / 'logs'}): give the folder to that user: `sudo chown -R {uid}:{gid} {data}` (for a host folder "
+        f"mounted on {data} in a container, run it on the host folder)"
+    ]
+
+
 def test_flags_override_environment_and_bad_settings_fail_fast(tmp_path: Path) -> None:
     weak = segb("serve", "--data-dir", str(tmp_path), env={"SECRET_KEY": "short"})
     assert weak.returncode == 2
