@@ -312,11 +312,16 @@ class RunningStack:
 def bring_up(stack: NativeStack, running: ExitStack) -> RunningStack:
     """Every service in compose's order, each once the one it depends on is healthy (by its own check)."""
     # virtuoso: started as the image would be, with DBA_PASSWORD as the dba password.
+    assert run_virtuoso_healthcheck(stack).returncode != 0  # not started: unhealthy
     stack.virtuoso.start()
     running.callback(stack.virtuoso.stop)
-    assert run_virtuoso_healthcheck(stack).returncode != 0  # still the fresh database's password
+    # Still the fresh database's password: Virtuoso answers, refusing it, and the check says so (the backend's
+    # log says more); healthy, so that the backend starts and can say why it cannot log in.
+    refused = run_virtuoso_healthcheck(stack)
+    assert (refused.returncode, b"Virtuoso refused DBA_PASSWORD" in refused.stdout) == (0, True)
     stack.virtuoso.set_dba_password(stack.services["virtuoso"]["environment"]["DBA_PASSWORD"])
-    assert run_virtuoso_healthcheck(stack).returncode == 0
+    accepted = run_virtuoso_healthcheck(stack)
+    assert (accepted.returncode, accepted.stdout) == (0, b"")
 
     backends = [stack.start("backend", running, replica) for replica in range(len(stack.backend_ports))]
     _, image_check = image_healthcheck(final_stage())
