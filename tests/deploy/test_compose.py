@@ -1,6 +1,7 @@
 """docker-compose.yaml: valid for compose, every variable in .env.example, and the tutorial holding on its services.
 
-No Docker engine runs here, so the last test runs the services natively with exactly the commands and
+The container tier (tests/containers) runs the stack itself on a Docker daemon; these tests are its fast
+companions, and need no daemon. The last ones run the services natively with exactly the commands and
 environment `docker-compose config` resolves (plus the image's ENV from the Dockerfile), changed only by
 `tests.support.compose.to_native`, which stands in for Docker's network and volumes: service names in URLs
 become 127.0.0.1, absolute paths move under a directory standing for the container's `/`, and the ports
