@@ -42,6 +42,8 @@ def tutorial(
 ) -> Iterator[Tutorial]:
     checkout = Checkout(docker_daemon, tmp_path_factory.mktemp("tutorial"))
     checkout.configure()
+    # A new user's first `up`: no segb-server:local yet (another test, or a kept data root, may have built one).
+    checkout.sh("docker", "image", "rm", "-f", "segb-server:local")
     try:
         with timed("first compose up"):
             up = checkout.compose("up", "-d", check=False, timeout=900)

@@ -9,6 +9,7 @@ run with `--network host`, or fetch from a server the tests run on the bridge's 
 
 from __future__ import annotations
 
+import contextlib
 import ipaddress
 import json
 import os
@@ -18,6 +19,8 @@ import subprocess
 import time
 from collections.abc import Mapping
 from pathlib import Path
+
+from tests.support.processes import end
 
 # The daemon's CLI (Debian's docker.io package): BuildKit is built into it, no buildx plugin needed.
 DEBIAN_CLI = Path("/usr/bin/docker")
@@ -115,6 +118,7 @@ class DockerDaemon:
             "--dns-opt=attempts:1",
         ]
         with (self.directory / "dockerd.log").open("wb") as log:
+            # A session of its own: Ctrl-C reaches the test run, which stops the daemon after its containers.
             self._process = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
         deadline = time.monotonic() + timeout
         while self.docker("info", check=False, timeout=30).returncode != 0:
@@ -155,17 +159,16 @@ class DockerDaemon:
 
     def stop(self) -> None:
         """Remove every container and network, stop the daemon, then remove what it left on the host."""
-        if self._process is not None and self._process.poll() is None:
-            containers = self.docker("ps", "-aq", check=False).stdout.split()
-            if containers:
-                self.docker("rm", "-f", "-v", *containers, check=False)
-            self.docker("network", "prune", "-f", check=False)
-            self._process.send_signal(signal.SIGTERM)
-            try:
-                self._process.wait(timeout=60)
-            except subprocess.TimeoutExpired:
-                os.killpg(self._process.pid, signal.SIGKILL)
-                self._process.wait()
+        if self._process is not None:
+            if self._process.poll() is None:
+                containers = self.docker("ps", "-aq", check=False).stdout.split()
+                if containers:
+                    self.docker("rm", "-f", "-v", *containers, check=False)
+                self.docker("network", "prune", "-f", check=False)
+            end(self._process, timeout=60)
+            for pid in _processes_under(self.directory):  # its containerd or a shim, should dockerd have died
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(pid, signal.SIGKILL)
         self._process = None
         self._remove_traces()
 
