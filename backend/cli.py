@@ -154,23 +154,28 @@ def _serve(args: argparse.Namespace) -> int:
     names = ("host", "api_port", "ui_port", "backend_url", "api_workers")
     settings = _settings(args, *names)
     from segb_server.backend.serving import (
+        DataDirUnwritable,
         WorkersRefused,
+        check_data_dir,
         check_shareable,
         configure_logging,
         hand_down,
         serve,
         serve_api_workers,
+        warn_when_open,
     )
 
     configure_logging(settings)
 
     if args.demo and args.only == "ui":
         return _fail("--demo fills the API's store: drop --only ui")
-    if args.only in (None, "api"):
-        _check_catalog(settings)
     try:
+        if args.only in (None, "api"):
+            _check_catalog(settings)
+            check_data_dir(settings)
+            warn_when_open(settings)
         check_shareable(settings, demo=args.demo)
-    except WorkersRefused as refused:
+    except (WorkersRefused, DataDirUnwritable) as refused:
         return _fail(str(refused))
     if args.only in (None, "api"):
         print(f"SEGB API  http://{settings.host}:{settings.api_port}/docs", file=sys.stderr)

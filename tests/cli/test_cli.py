@@ -10,8 +10,10 @@ import time
 from pathlib import Path
 
 import httpx
+import pytest
 from pyoxigraph import RdfFormat
 
+from segb_server.backend.serving import listens_beyond_this_machine
 from tests.conftest import FIXTURES
 from tests.support.graphs import value_triples
 from tests.support.net import free_port
@@ -84,6 +86,60 @@ def test_serve_runs_api_and_ui_and_stops_on_sigterm(tmp_path: Path) -> None:
         output, _ = process.communicate(timeout=30)
     assert process.returncode == 0, output
     assert (tmp_path / "oxigraph").is_dir()
+    assert "AUTHENTICATION IS OFF" not in output  # on 127.0.0.1 only, the default
+
+
+@pytest.mark.parametrize(
+    ("host", "beyond"),
+    [("127.0.0.1", False), ("127.0.0.2", False), ("::1", False), ("localhost", False),
+     ("0.0.0.0", True), ("::", True), ("192.0.2.7", True), ("robots.example", True)],
+)  # fmt: skip
+def test_only_loopback_hosts_keep_the_server_to_this_machine(host: str, beyond: bool) -> None:
+    assert listens_beyond_this_machine(host) is beyond
+
+
+def test_serve_without_auth_on_every_interface_warns_loudly(tmp_path: Path) -> None:
+    port = free_port()
+    process = subprocess.Popen(
+        [*SEGB, "serve", "--only", "api", "--store", "memory", "--host", "0.0.0.0", "--api-port", str(port)],
+        env=clean_env(),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    try:
+        assert wait_for(f"http://127.0.0.1:{port}/healthz/ready").status_code == 200
+    finally:
+        process.send_signal(signal.SIGTERM)
+        output, _ = process.communicate(timeout=30)
+    [warning] = [line for line in output.splitlines() if "AUTHENTICATION IS OFF" in line]
+    assert "WARNING segb.serve: AUTHENTICATION IS OFF (SECRET_KEY is empty) and the API listens on 0.0.0.0" in warning
+    assert f"anyone who can reach port {port} can publish, read and delete every log" in warning
+    assert "Set SECRET_KEY" in warning and "PUBLISH_ADDRESS" in warning
+
+
+def test_serve_says_how_to_make_an_unwritable_data_dir_writable(tmp_path: Path) -> None:
+    """A folder the server's user cannot write (a root-owned host folder on a container's /data): one line
+    saying which folder, which user and the command that fixes it, and no traceback."""
+    data = tmp_path / "data"
+    data.mkdir()
+    data.chmod(0o555)
+    # As root, without the capability that lets root write anywhere, as the image's user would be refused.
+    unprivileged = ["setpriv", "--bounding-set=-dac_override,-dac_read_search"] if os.geteuid() == 0 else []
+    result = subprocess.run(
+        [*unprivileged, *SEGB, "serve", "--only", "api", "--data-dir", str(data)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=clean_env(),
+    )
+    assert result.returncode == 2, result.stderr
+    uid, gid = os.geteuid(), os.getegid()
+    assert result.stderr.splitlines() == [
+        f"segb: error: DATA_DIR {data} is not writable by this server's user, uid {uid} (Permission denied: "
+        f"{data / 'logs'}): give the folder to that user: `sudo chown -R {uid}:{gid} {data}` (for a host folder "
+        f"mounted on {data} in a container, run it on the host folder)"
+    ]
 
 
 def test_flags_override_environment_and_bad_settings_fail_fast(tmp_path: Path) -> None:

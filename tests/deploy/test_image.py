@@ -73,6 +73,27 @@ def test_build_stage_installs_the_lock_with_hashes_and_copies_every_package() ->
     assert set(packages()) <= copied  # `segb demo` and `segb serve --demo` import examples.emotion_mirror
 
 
+def test_build_stage_builds_the_project_with_the_locked_build_tools_only() -> None:
+    """`pip install .` with build isolation would fetch the newest setuptools, unpinned and unchecked: the
+    image builds the project with the lock's setuptools instead, and downloads nothing at that step."""
+    runs = [i.arguments for i in build_stage() if i.keyword == "RUN"]
+    [install] = [run for run in runs if run.endswith(" .")]
+    assert "--no-build-isolation" in install and "--no-index" in install
+    entries = locked()
+    for requirement in map(Requirement, PYPROJECT["build-system"]["requires"]):
+        name = canonicalize_name(requirement.name)
+        assert name in entries, f"{requirement.name} (pyproject's build-system) is not in requirements.lock"
+        version, hashes = entries[name]
+        assert requirement.specifier.contains(version) and hashes > 0, f"{name}=={version} ≠ {requirement}"
+
+
+def test_dockerfile_names_no_frontend_so_buildkit_needs_no_registry() -> None:
+    """A `# syntax=` parser directive makes every BuildKit build fetch that frontend image first, which fails
+    offline or behind a registry mirror; the built-in frontend reads this Dockerfile."""
+    leading = [line for line in (ROOT / "Dockerfile").read_text().splitlines() if line.startswith("#")]
+    assert not [line for line in leading if re.match(r"#\s*syntax\s*=", line, re.IGNORECASE)]
+
+
 def test_final_stage_runs_unprivileged_on_the_same_base_without_build_tools() -> None:
     stage = final_stage()
     assert stage[0].arguments == build_stage()[0].arguments.split(" AS ")[0]  # the venv's Python is the same
@@ -99,7 +120,8 @@ def test_healthcheck_probes_api_readiness() -> None:
 
 
 def test_package_built_from_the_build_stage_copies_holds_every_runtime_file(tmp_path: Path) -> None:
-    """What `pip install --no-deps .` installs in the image: built from exactly the files the stage copies."""
+    """What `pip install --no-deps .` installs in the image: built from exactly the files the stage copies,
+    with the same build tools (the lock's setuptools, no build isolation, nothing downloaded)."""
     source = tmp_path / "src"
     for sources, destination in stage_copies(build_stage()):
         for name in sources:
@@ -111,8 +133,9 @@ def test_package_built_from_the_build_stage_copies_holds_every_runtime_file(tmp_
             else:
                 target.parent.mkdir(parents=True, exist_ok=True)
                 shutil.copy(ROOT / name, target)
+    as_the_image_does = ["--no-deps", "--no-build-isolation", "--no-index"]
     built = subprocess.run(
-        [sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(tmp_path / "wheel"), str(source)],
+        [sys.executable, "-m", "pip", "wheel", "-q", *as_the_image_does, "-w", str(tmp_path / "wheel"), str(source)],
         capture_output=True,
         text=True,
         timeout=300,
