@@ -14,6 +14,7 @@ COPY backend backend
 COPY ui ui
 COPY examples examples
 COPY sparql sparql
+COPY rules rules
 RUN /venv/bin/pip install --no-deps .
 
 FROM ${PYTHON_IMAGE}
