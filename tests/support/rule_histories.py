@@ -15,7 +15,7 @@ EMOML = "http://www.gsi.upm.es/ontologies/onyx/vocabularies/emotionml/ns#"
 
 def at(seconds: float) -> str:
     whole = int(seconds)
-    fraction = f".{int(round((seconds - whole) * 1000)):03d}" if seconds != whole else ""
+    fraction = f".{round((seconds - whole) * 1000):03d}" if seconds != whole else ""
     return f'"2026-03-10T09:{whole // 60 % 60:02d}:{whole % 60:02d}{fraction}Z"^^{term("xsd:dateTime")}'
 
 
