@@ -16,9 +16,11 @@ from segb_server.backend.api.routes.live import event_stream
 from segb_server.backend.services.errors import InvalidParameter
 from segb_server.backend.services.formats import TABLES, negotiate
 from segb_server.backend.services.rules.service import DEFAULT_LIMIT, FILTERS, MAX_LIMIT, FindingsPage
+from segb_server.backend.services.sparql.catalog import Parameter, to_term
 
 router = APIRouter(tags=["findings"])
 
+MAX_FOCUS = 200
 CSV_COLUMNS = ("time", "rule", "severity", "robot", "human", "focus", "message", "values")
 
 
@@ -50,6 +52,7 @@ async def list_rules(services: ServicesDep, principal: Auditor) -> Response:
         "`since`, `until` (ISO 8601 times with a zone, inclusive): a rule that does not declare a filter that is "
         "given has nothing to say under it and is left out. Each finding: `rule`, `severity`, `title`, `focus` "
         "(what it is about: open it with `/explain?iri=`), `message`, `time`, `robot`, `human`, `values`. "
+        "`focus=` (repeatable) lists every finding about those nodes instead, unpaged. "
         "`counts` gives the findings per rule and per severity under the same filters; `next` is the cursor of "
         f"the next page (`after=`); `limit` 1 to {MAX_LIMIT} (default {DEFAULT_LIMIT}). CSV with "
         "`Accept: text/csv` or `?format=csv`. `last_event_id`: where `GET /findings/stream` stands for these rows."
@@ -66,16 +69,20 @@ async def list_findings(
     human: str | None = Query(None, description="Only findings about this human (IRI)"),
     since: str | None = Query(None, description="Only findings at or after this time"),
     until: str | None = Query(None, description="Only findings at or before this time"),
+    focus: list[str] = Query([], description=f"Only findings about this node (repeatable, at most {MAX_FOCUS})"),
     after: str | None = Query(None, description="The `next` cursor of the previous page"),
     format: str | None = Query(None, description="json or csv; overrides Accept"),
 ) -> Response:
     limit = _limit(request.query_params.get("limit"))
     fmt = negotiate(TABLES, request.headers.get("accept"), format, what="the findings")
-    known = {"rule", "severity", "limit", "after", "format", *FILTERS}
+    known = {"rule", "severity", "limit", "after", "format", "focus", *FILTERS}
     unknown = sorted(set(request.query_params) - known)
     if unknown:
         raise InvalidParameter(unknown[0], "not a filter of the findings")
     values = {name: request.query_params.getlist(name) for name in ("rule", "severity", *FILTERS)}
+
+    if focus:
+        return await _about(services, focus, set(request.query_params) - {"focus", "format"})
 
     def work() -> Response:
         findings = services.findings
@@ -123,6 +130,18 @@ async def findings_stream(request: Request, services: ServicesDep, principal: Au
         return []
 
     return event_stream(request, opening, changes, findings.changed)
+
+
+async def _about(services: ServicesDep, focus: list[str], others: set[str]) -> Response:
+    """`focus=`: every finding about those nodes, whatever its rule (no paging: a handful of nodes)."""
+    if others:
+        raise InvalidParameter(sorted(others)[0], "`focus` lists the findings about nodes, with no other filter")
+    if len(focus) > MAX_FOCUS:
+        raise InvalidParameter("focus", f"at most {MAX_FOCUS} nodes")
+    for iri in focus:
+        to_term(Parameter("focus", "iri"), iri)  # 422 naming `focus` when it is not an IRI
+    findings = await run_in_threadpool(services.findings.about, focus)
+    return FastJSONResponse({"findings": findings, "has_more": False, "next": None})
 
 
 def _limit(raw: str | None) -> int:

@@ -23,8 +23,9 @@ from segb_server.backend.services.rules.findings import Finding, finding, order_
 from segb_server.backend.services.rules.shape_view import ShapeFindings, check_shapes
 from segb_server.backend.services.rules.shapes import ShapeRule
 from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, Parameter, to_term
-from segb_server.backend.services.upkeep.kept_queries.encoding import instant
+from segb_server.backend.services.upkeep.kept_queries.encoding import instant, numeric_value
 from segb_server.backend.services.upkeep.kept_queries.projection import KeptQueries
+from segb_server.backend.services.upkeep.kept_queries.rows import iri_unit
 from segb_server.backend.services.upkeep.signal import ChangeSignal
 from segb_server.backend.services.values import JsonValue, json_value
 from segb_server.backend.store.base import Store, Term, select
@@ -178,6 +179,24 @@ class FindingsService:
             next_after = kept.after
         return ["a", next_after] if next_after else ["done"]
 
+    def about(self, iris: list[str]) -> list[Finding]:
+        """Every finding whose focus is one of `iris` (the explain page marks what they are about), in time order:
+        read by key from the kept rows, or from each rule evaluated in full while those are not there."""
+        units = sorted({iri_unit(iri) for iri in iris})
+        found: list[tuple[tuple[object, ...], str, dict[str, JsonValue]]] = []
+        for rule in self.catalog:
+            if rule.query is None and self.shapes is not None:
+                rows = self.shapes.unit_rows(rule.id, units)
+            elif rule.query is not None and self.kept is not None and (kept := self.kept.reports.get(rule.query.name)) \
+                    and kept.ready:  # fmt: skip
+                bound, compared = self._bound(rule, {}), kept.layout.plan.column_filters
+                rows = [row for row in self.kept.rows.unit_rows(kept.layout, units) if _passes(row, compared, bound)]
+            else:
+                rows = [row for row in self.evaluate_rule(rule, {}) if row.get("focus") in iris]
+            found += [(order_key(row), rule.id, row) for row in rows]
+        found.sort(key=lambda entry: (entry[0], entry[1]))
+        return [finding(self.catalog.get(rule_id), row) for _, rule_id, row in found]
+
     # --- counts --------------------------------------------------------------------------------------
 
     def counts(self, selection: Selection) -> dict[str, dict[str, int]]:
@@ -265,6 +284,22 @@ class FindingsService:
             to_term(Parameter(name, "dateTime"), filters[name]) if name in filters else None
             for name in ("since", "until")
         )
+
+
+def _passes(row: dict[str, JsonValue], comparisons: list[Any], bound: dict[str, Term | None]) -> bool:
+    """Whether a kept row passes the rule's own parameters at their defaults (a threshold, a delay): rows are kept
+    for every value and a page compares them on their columns; a row read by key is compared here the same way
+    (the query's `FILTER (!BOUND(?param_x) || ?column >= ?param_x)`, as its plan read it)."""
+    for comparison in comparisons:
+        term = bound.get(comparison.parameter)
+        if term is None or comparison.parameter in FILTERS:
+            continue
+        value, limit = row.get(comparison.column[1:]), numeric_value(term)
+        if limit is None or not isinstance(value, int | float):
+            return False
+        if not {"=": value == limit, ">=": value >= limit, "<=": value <= limit}[comparison.op]:
+            return False
+    return True
 
 
 def _positions(after: str | None) -> dict[str, list[Any]]:

@@ -202,6 +202,17 @@ class ShapeFindings:
         query = f"SELECT COUNT(*) FROM shape_findings WHERE {' AND '.join(where)}"
         return int(self.db.reader().execute(query, arguments).fetchone()[0])
 
+    def unit_rows(self, rule_id: str, units: list[str]) -> list[dict[str, JsonValue]]:
+        """The findings of one rule about these nodes (N-Triples texts)."""
+        if not units:
+            return []
+        marks = ", ".join("?" * len(units))
+        found = self.db.reader().execute(
+            f"SELECT row FROM shape_findings WHERE rule = ? AND unit IN ({marks}) ORDER BY ord, unit, n",
+            [rule_id, *units],
+        )
+        return [orjson.loads(row[0]) for row in found.fetchall()]
+
     def last_change(self) -> int:
         return int(self.db.reader().execute("SELECT COALESCE(MAX(seq), 0) FROM shape_changes").fetchone()[0])
 
