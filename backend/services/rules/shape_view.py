@@ -21,7 +21,7 @@ import orjson
 from pyoxigraph import Literal, NamedNode
 
 from segb_server.backend.services.errors import InvalidParameter
-from segb_server.backend.services.rules.shapes import Context, ShapeResult, ShapeRule
+from segb_server.backend.services.rules.shapes import Context, ShapeResult, ShapeRule, read_predicates, statements
 from segb_server.backend.services.upkeep.database import ViewDatabase
 from segb_server.backend.services.upkeep.delta import Delta
 from segb_server.backend.services.upkeep.kept_queries.encoding import instant, sort_key
@@ -44,6 +44,7 @@ SCHEMA = [
 ]
 NAME = "shape-findings"
 Record = tuple[str, str | None, str | None, str]  # sort key, time, robot, the finding as JSON
+Found = tuple[str, str | None, str | None, dict[str, JsonValue]]  # sort key, time, robot, the finding
 
 
 @dataclass(frozen=True)
@@ -96,8 +97,9 @@ class ShapeFindings:
     def update(self, delta: Delta, through: int) -> None:
         checked: dict[str, tuple[set[str], dict[str, list[Record]]]] = {}
         if delta:
-            named = _named_nodes(delta)
-            checked = {rule.rule.id: self._check(rule, named) for rule in self.rules}
+            # Every rule's targets among the nodes the batch names, then their statements read once for all.
+            found = check_rules(self.rules, self.store, _named_nodes(delta))
+            checked = {rule_id: (units, self._records(rows)) for rule_id, (units, rows) in found.items()}
         changed = False
         with self.db.writing() as connection:
             for rule_id, (units, rows) in checked.items():
@@ -122,11 +124,14 @@ class ShapeFindings:
     def _check(self, rule: ShapeRule, named: set[str] | None) -> tuple[set[str], dict[str, list[Record]]]:
         """The nodes checked (every target of a shape among `named`, or all) and their findings as records."""
         units, found = check_shapes(rule, self.store, named)
-        records = {
+        return units, self._records(found)
+
+    @staticmethod
+    def _records(found: dict[str, list[Found]]) -> dict[str, list[Record]]:
+        return {
             unit: [(order, moment, robot, orjson.dumps(row).decode()) for order, moment, robot, row in rows]
             for unit, rows in found.items()
         }
-        return units, records
 
     def _replace(
         self,
@@ -238,21 +243,31 @@ def _named_nodes(delta: Delta) -> set[str]:
     return named
 
 
-def check_shapes(
-    rule: ShapeRule, store: Store, named: set[str] | None
-) -> tuple[set[str], dict[str, list[tuple[str, str | None, str | None, dict[str, JsonValue]]]]]:
+def check_shapes(rule: ShapeRule, store: Store, named: set[str] | None) -> tuple[set[str], dict[str, list[Found]]]:
     """Check a SHACL rule on the targets among `named` (None: every target): the nodes checked, and each one's
     findings as (sort key, time, robot, row)."""
-    targets = rule.targets(store, named)
-    units = set().union(*targets.values()) if targets else set()
-    results, contexts = rule.check(store, targets)
-    found: dict[str, list[tuple[str, str | None, str | None, dict[str, JsonValue]]]] = {}
-    for result in results:
-        found.setdefault(result.focus, []).append(_record(result, contexts.get(result.focus, Context())))
-    return units, found
+    return check_rules([rule], store, named)[rule.rule.id]
 
 
-def _record(result: ShapeResult, context: Context) -> tuple[str, str | None, str | None, dict[str, JsonValue]]:
+def check_rules(
+    rules: list[ShapeRule], store: Store, named: set[str] | None
+) -> dict[str, tuple[set[str], dict[str, list[Found]]]]:
+    """`check_shapes` for several rules, their targets' statements read once for all."""
+    targets = {rule.rule.id: rule.targets(store, named) for rule in rules}
+    nodes = sorted({node for found in targets.values() for nodes in found.values() for node in nodes})
+    data, contexts = statements(store, nodes, read_predicates(rules)) if nodes else (None, {})
+    checked: dict[str, tuple[set[str], dict[str, list[Found]]]] = {}
+    for rule in rules:
+        units = set().union(*targets[rule.rule.id].values()) if targets[rule.rule.id] else set()
+        results = rule.validate(data, targets[rule.rule.id]) if data is not None and units else []
+        found: dict[str, list[Found]] = {}
+        for result in results:
+            found.setdefault(result.focus, []).append(_record(result, contexts.get(result.focus, Context())))
+        checked[rule.rule.id] = (units, found)
+    return checked
+
+
+def _record(result: ShapeResult, context: Context) -> Found:
     """One finding: sorted by its focus node's time, then the node; its time and robot as filters compare them."""
     time, robot = context.time, context.robot
     row: dict[str, JsonValue] = {

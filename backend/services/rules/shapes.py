@@ -84,30 +84,16 @@ class ShapeRule:
         nodes = sorted(set().union(*targets.values())) if targets else []
         if not nodes:
             return [], {}
-        data, contexts = self._statements(store, nodes)
+        data, contexts = statements(store, nodes, self.predicates)
+        return self.validate(data, targets), contexts
+
+    def validate(self, data: Graph, targets: dict[URIRef, set[str]]) -> list[ShapeResult]:
+        """Each shape on its targets, in `data` (the targets' statements, read with `statements`)."""
         results: list[ShapeResult] = []
         for shape, focus in targets.items():
             if focus:
                 results += self._validate(data, shape, sorted(focus))
-        return results, contexts
-
-    def _statements(self, store: Store, nodes: list[str]) -> tuple[Graph, dict[str, Context]]:
-        data = Graph()
-        lines: list[str] = []
-        contexts: dict[str, dict[str, object]] = {}
-        wanted = None if self.predicates is None else sorted({*self.predicates, *TIMES, *ACTORS, str(RDF.type)})
-        for chunk in _chunks(nodes):
-            text = "SELECT ?s ?p ?o WHERE { ?s ?p ?o }"
-            if wanted is not None:
-                predicates = " ".join(f"<{predicate}>" for predicate in wanted)
-                text = f"SELECT ?s ?p ?o WHERE {{ VALUES ?p {{ {predicates} }} ?s ?p ?o }}"
-            bound = bind_rows(text, ["s"], [[NamedNode(node[1:-1])] for node in chunk], wrap=store.wraps_values)
-            for row in select(store, bound).rows:
-                subject, predicate, value = row["s"], row["p"], row["o"]
-                lines.append(f"{term_text(subject)} {term_text(predicate)} {term_text(value)} .")
-                _note_context(contexts.setdefault(term_text(subject), {}), predicate.value, value)
-        data.parse(io.StringIO("\n".join(lines)), format="nt")
-        return data, {node: Context(found.get("time"), found.get("robot")) for node, found in contexts.items()}
+        return results
 
     def _validate(self, data: Graph, shape: URIRef, focus: list[str]) -> list[ShapeResult]:
         # pySHACL parses through rdflib, whose parser is not safe across threads (services/sparql/parser.py).
@@ -116,12 +102,43 @@ class ShapeRule:
                 data,
                 shacl_graph=self.graph,
                 advanced=True,
+                inplace=True,  # the graph is this check's own copy: no second copy for pySHACL
                 allow_warnings=True,
                 allow_infos=True,
                 focus_nodes=[URIRef(node[1:-1]) for node in focus],
                 use_shapes=[shape],
             )
         return list(_results(report))
+
+
+def statements(store: Store, nodes: list[str], predicates: frozenset[str] | None) -> tuple[Graph, dict[str, Context]]:
+    """The nodes' statements with these predicates (None: all), as a graph, and each node's context."""
+    data = Graph()
+    lines: list[str] = []
+    contexts: dict[str, dict[str, object]] = {}
+    wanted = None if predicates is None else sorted({*predicates, *TIMES, *ACTORS, str(RDF.type)})
+    for chunk in _chunks(nodes):
+        text = "SELECT ?s ?p ?o WHERE { ?s ?p ?o }"
+        if wanted is not None:
+            listed = " ".join(f"<{predicate}>" for predicate in wanted)
+            text = f"SELECT ?s ?p ?o WHERE {{ VALUES ?p {{ {listed} }} ?s ?p ?o }}"
+        bound = bind_rows(text, ["s"], [[NamedNode(node[1:-1])] for node in chunk], wrap=store.wraps_values)
+        for row in select(store, bound).rows:
+            subject, predicate, value = row["s"], row["p"], row["o"]
+            lines.append(f"{term_text(subject)} {term_text(predicate)} {term_text(value)} .")
+            _note_context(contexts.setdefault(term_text(subject), {}), predicate.value, value)
+    data.parse(io.StringIO("\n".join(lines)), format="nt")
+    return data, {node: Context(found.get("time"), found.get("robot")) for node, found in contexts.items()}
+
+
+def read_predicates(rules: list[ShapeRule]) -> frozenset[str] | None:
+    """What checking these rules together reads of a node: every predicate one of them reads (None: all)."""
+    found: set[str] = set()
+    for rule in rules:
+        if rule.predicates is None:
+            return None
+        found |= rule.predicates
+    return frozenset(found)
 
 
 def _note_context(context: dict[str, object], predicate: str, value: object) -> None:
