@@ -35,6 +35,11 @@ UPKEEP_POSTS = 60  # posts whose findings upkeep is timed in-process
 PAGE_REPEATS = 30
 GIVE_UP_SECONDS = 5.0
 UNANSWERED = "unanswered-message"
+HEADER = (
+    "| triples | findings built (s) | upkeep per post p50 / p95 (ms) | finding shown after the 201 p50 / p99 (ms) "
+    "| resolved p50 / p99 (ms) | /findings p50 / p95 (ms) | filtered by robot | violations only | page 10 (cursor) "
+    "| /rules |"
+)
 
 
 @dataclass
@@ -54,9 +59,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--posts", type=int, default=600, help="posts of the live robot (at 10 a second)")
     args = parser.parse_args(argv)
     root = Path(tempfile.mkdtemp(prefix="segb-bench-findings-"))
-    print("| triples | findings built (s) | upkeep per post p50 / p95 (ms) | finding shown after the 201 p50 / p99 (ms) "
-          "| resolved p50 / p99 (ms) | /findings p50 / p95 (ms) | filtered by robot | violations only | page 10 "
-          "(cursor) | /rules |")  # fmt: skip
+    print(HEADER)
     print("|---|---|---|---|---|---|---|---|---|---|")
     for size in args.sizes:
         print(_row(root, size, args.posts), flush=True)
