@@ -35,7 +35,7 @@ from segb_server.backend.store.terms import bind_rows, bind_values, term_text
 
 logger = logging.getLogger("segb.reports")
 
-PLAN_VERSION = "4"  # bump when the stored layout changes: every report is then built again
+PLAN_VERSION = "5"  # bump when the stored layout changes: every report is then built again
 CHANGES_KEPT = 20_000
 
 
@@ -202,7 +202,7 @@ def _projection(query: CatalogQuery, plan: ReportPlan, store: Store, rows: KeptR
             raise Unsupported("a report's key is one variable")
         unit = plan.key[0][1:]
         text = query.text
-    layout = Layout(f"report_{re.sub(r'[^a-z0-9]', '_', query.name.lower())}", plan, query.parameters)
+    layout = Layout(f"report_{re.sub(r'[^a-z0-9]', '_', query.name.lower())}", plan, query.parameters, unit)
     # The tables' schema counts too: rows stored in another layout are built again, not read.
     fingerprint = hashlib.sha256("\n".join([PLAN_VERSION, query.text, *layout.schema()]).encode()).hexdigest()
     return KeptQuery(layout, unit, text, fingerprint, store, rows)
