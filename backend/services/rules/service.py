@@ -16,20 +16,21 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from pyoxigraph import NamedNode
+
 from segb_server.backend.services.errors import Conflict, InvalidParameter
 from segb_server.backend.services.rules.catalog import FOLDER, SEVERITIES, Rule, RuleCatalog
-from segb_server.backend.services.rules.counting import count_rows
 from segb_server.backend.services.rules.findings import Finding, finding, order_key
+from segb_server.backend.services.rules.kept_rows import count_rows, rows_about
 from segb_server.backend.services.rules.shape_view import ShapeFindings, check_shapes
 from segb_server.backend.services.rules.shapes import ShapeRule
 from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, Parameter, to_term
 from segb_server.backend.services.upkeep.kept_queries.encoding import instant, numeric_value
 from segb_server.backend.services.upkeep.kept_queries.projection import KeptQueries
-from segb_server.backend.services.upkeep.kept_queries.rows import iri_unit
 from segb_server.backend.services.upkeep.signal import ChangeSignal
 from segb_server.backend.services.values import JsonValue, json_value
 from segb_server.backend.store.base import Store, Term, select
-from segb_server.backend.store.terms import bind_values
+from segb_server.backend.store.terms import bind_values, term_text
 
 DEFAULT_LIMIT = 100
 MAX_LIMIT = 1000
@@ -182,7 +183,7 @@ class FindingsService:
     def about(self, iris: list[str]) -> list[Finding]:
         """Every finding whose focus is one of `iris` (the explain page marks what they are about), in time order:
         read by key from the kept rows, or from each rule evaluated in full while those are not there."""
-        units = sorted({iri_unit(iri) for iri in iris})
+        units = sorted({term_text(NamedNode(iri)) for iri in iris})
         found: list[tuple[tuple[object, ...], str, dict[str, JsonValue]]] = []
         for rule in self.catalog:
             if rule.query is None and self.shapes is not None:
@@ -190,7 +191,7 @@ class FindingsService:
             elif rule.query is not None and self.kept is not None and (kept := self.kept.reports.get(rule.query.name)) \
                     and kept.ready:  # fmt: skip
                 bound, compared = self._bound(rule, {}), kept.layout.plan.column_filters
-                rows = [row for row in self.kept.rows.unit_rows(kept.layout, units) if _passes(row, compared, bound)]
+                rows = [row for row in rows_about(self.kept.rows, kept.layout, iris) if _passes(row, compared, bound)]
             else:
                 rows = [row for row in self.evaluate_rule(rule, {}) if row.get("focus") in iris]
             found += [(order_key(row), rule.id, row) for row in rows]
