@@ -54,7 +54,9 @@ async def list_rules(services: ServicesDep, principal: Auditor) -> Response:
         "(what it is about: open it with `/explain?iri=`), `message`, `time`, `robot`, `human`, `values`. "
         "`focus=` (repeatable) lists every finding about those nodes instead, unpaged. "
         "`counts` gives the findings per rule and per severity under the same filters; `next` is the cursor of "
-        f"the next page (`after=`); `limit` 1 to {MAX_LIMIT} (default {DEFAULT_LIMIT}). CSV with "
+        "the next page (`after=`); `served_from` says, per rule, whether its findings come from its kept rows "
+        "(`rows`), its query evaluated in full (`query`, while its rows are first built) or SHACL findings still "
+        f"being first checked (`building`); `limit` 1 to {MAX_LIMIT} (default {DEFAULT_LIMIT}). CSV with "
         "`Accept: text/csv` or `?format=csv`. `last_event_id`: where `GET /findings/stream` stands for these rows."
     ),
     responses={200: {"content": {"application/json": {}, "text/csv": {}}}, 422: {}},

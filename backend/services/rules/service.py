@@ -58,7 +58,7 @@ class FindingsPage:
     has_more: bool
     next: str | None
     counts: dict[str, dict[str, int]] = field(default_factory=dict)
-    served_from: dict[str, str] = field(default_factory=dict)  # rule → "rows" or "query"
+    served_from: dict[str, str] = field(default_factory=dict)  # rule → "rows", "query" or "building"
     last_event_id: str = "0.0"
 
 
@@ -152,8 +152,10 @@ class FindingsService:
         """`limit` rows of one rule from `position`, whether more follow, and where they came from."""
         after = position[1] if position[0] == "a" else None
         if rule.query is None and self.shapes is not None and (after is not None or position == ["o", 0]):
+            # Until the shapes are first checked (minutes at a million triples: every target of every shape),
+            # their findings are those checked so far, and the answer says so: a full check per request is out.
             shaped = self.shapes.page(rule.id, filters.get("robot"), *self._times(filters), limit, after)
-            return shaped.rows, shaped.has_more, "rows"
+            return shaped.rows, shaped.has_more, "rows" if self.shapes.ready else "building"
         if rule.query is not None and self.kept is not None and (after is not None or position == ["o", 0]):
             kept = self.kept.page(rule.query.name, self._bound(rule, filters), limit, 0, after)
             if kept is not None:
