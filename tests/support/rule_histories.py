@@ -5,10 +5,9 @@ an untyped subject, a model without a version). Each part of a unit may arrive i
 
 from __future__ import annotations
 
-import random
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
-from tests.support.histories import EX, HUMANS, ROBOTS, iri, term
+from tests.support.histories import EX, HUMANS, ROBOTS, History, iri, term
 
 EMOML = "http://www.gsi.upm.es/ontologies/onyx/vocabularies/emotionml/ns#"
 
@@ -20,15 +19,8 @@ def at(seconds: float) -> str:
 
 
 @dataclass
-class RuleHistory:
-    seed: int
-    rng: random.Random = field(init=False)
-    pending: list[list[str]] = field(default_factory=list)
-    sent: list[str] = field(default_factory=list)
-    counter: int = 0
-
-    def __post_init__(self) -> None:
-        self.rng = random.Random(self.seed)
+class RuleHistory(History):
+    """A `History` (posts, late parts, re-publishes, clearings) whose units touch every audit rule."""
 
     def base(self) -> list[str]:
         triples = []
@@ -124,27 +116,6 @@ class RuleHistory:
             if rng.random() < 0.5:
                 parts.append([f"{iri('note', f'n{n}')} {t('rdf:type')} {t('prov:Entity')} ."])
         return parts
-
-    def next_post(self) -> list[str] | None:
-        """The triples of the next post, or None for a clearing."""
-        roll = self.rng.random()
-        if roll < 0.04:
-            self.pending = []
-            return None
-        post: list[str] = []
-        if not self.sent or roll < 0.12:
-            post += self.base()
-        for part in self.unit():
-            if self.rng.random() < 0.35:
-                self.pending.append(part)
-            else:
-                post += part
-        while self.pending and self.rng.random() < 0.5:
-            post += self.pending.pop(self.rng.randrange(len(self.pending)))
-        if self.sent and self.rng.random() < 0.3:
-            post += self.rng.sample(self.sent, min(len(self.sent), 20))
-        self.sent += post
-        return post
 
 
 __all__ = ["EX", "RuleHistory"]
