@@ -55,8 +55,9 @@ async def list_rules(services: ServicesDep, principal: Auditor) -> Response:
         "`focus=` (repeatable) lists every finding about those nodes instead, unpaged. "
         "`counts` gives the findings per rule and per severity under the same filters; `next` is the cursor of "
         "the next page (`after=`); `served_from` says, per rule, whether its findings come from its kept rows "
-        "(`rows`), its query evaluated in full (`query`, while its rows are first built) or SHACL findings still "
-        f"being first checked (`building`); `limit` 1 to {MAX_LIMIT} (default {DEFAULT_LIMIT}). CSV with "
+        "(`rows`), its query evaluated in full (`query`: a rule the rows cannot follow) or nothing yet: its "
+        "findings are being first built (`building`; the SHACL rules' list those checked so far); `limit` 1 to "
+        f"{MAX_LIMIT} (default {DEFAULT_LIMIT}). CSV with "
         "`Accept: text/csv` or `?format=csv`. `last_event_id`: where `GET /findings/stream` stands for these rows."
     ),
     responses={200: {"content": {"application/json": {}, "text/csv": {}}}, 422: {}},
