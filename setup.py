@@ -2,8 +2,8 @@
 
 `backend/`, `ui/`, `examples/`, `sparql/` and `rules/` stay at the top of the repository; the wheel installs them
 as `segb_server.backend`, `segb_server.ui`, `segb_server.examples`, `segb_server.sparql` and `segb_server.rules`
-(the `.rq` and `.ttl` files as package data), so no top-level `backend` or `ui` package clashes with another distribution's. `segb_server`
-itself is a namespace package. Everything else is declared in pyproject.toml.
+(the `.rq` and `.ttl` files as package data), so no top-level `backend` or `ui` package clashes with another
+distribution's. `segb_server` itself is a namespace package. Everything else is declared in pyproject.toml.
 """
 
 from setuptools import find_packages, setup

@@ -57,12 +57,12 @@ class TermIds:
                 found[iri] = known
         if missing:
             stored = lookup(connection, self.table, missing)
-            for iri in missing:
-                if iri not in stored:
-                    cursor = connection.execute(
-                        f"INSERT INTO {self.table} (hash, text) VALUES (?, ?)", (iri_hash(iri), iri)
-                    )
-                    stored[iri] = int(cursor.lastrowid or 0)
+            new = [iri for iri in missing if iri not in stored]
+            if new:
+                connection.executemany(
+                    f"INSERT INTO {self.table} (hash, text) VALUES (?, ?)", [(iri_hash(iri), iri) for iri in new]
+                )
+                stored.update(lookup(connection, self.table, new))
             found.update(stored)
             for iri in missing:
                 self._ids[iri] = stored[iri]
