@@ -13,6 +13,7 @@ COPY backend backend
 COPY ui ui
 COPY examples examples
 COPY sparql sparql
+COPY rules rules
 # The build tools come from the lock too (setuptools): no build isolation, nothing downloaded.
 RUN /venv/bin/pip install --no-deps --no-build-isolation --no-index .
 

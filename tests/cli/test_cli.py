@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -181,3 +182,43 @@ def wait_for(url: str, timeout: float = 30) -> httpx.Response:
             if time.monotonic() > deadline:
                 raise
             time.sleep(0.1)
+
+
+def test_check_prints_each_finding_with_its_line_and_fails_on_violations(tmp_path: Path) -> None:
+    from tests.support.rule_scenarios import troubled
+
+    scenario, expected = troubled()
+    scenario.run_steps()
+    log = tmp_path / "ari.ttl"
+    log.write_text(scenario.published_turtle()[0], encoding="utf-8")
+    result = subprocess.run([*SEGB, "check", str(log)], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 1, result.stderr
+    printed = result.stdout.splitlines()
+    assert printed[-1].endswith("3 violations, 6 warnings, 2 infos")
+    assert any(line.startswith(f"{log}:") and ": violation: [time-not-datetime]" in line for line in printed)
+    assert len(printed) - 1 == sum(len(nodes) for nodes in expected.values())
+    as_json = json.loads(subprocess.run([*SEGB, "check", str(log), "--format", "json"], capture_output=True, text=True,
+                                        timeout=120).stdout)  # fmt: skip
+    assert as_json["violations"] == 3 and all(found["line"] for found in as_json["findings"])
+    junit = subprocess.run([*SEGB, "check", str(log), "--format", "junit"], capture_output=True, text=True, timeout=120)
+    assert '<testsuite name="segb check' in junit.stdout and 'failures="3"' in junit.stdout
+
+
+def test_check_passes_a_clean_log_and_takes_a_folder_of_rules(tmp_path: Path) -> None:
+    clean = tmp_path / "clean.ttl"
+    clean.write_text('<https://example.org/r> a <http://kb.openrobots.org#Robot> ; <http://schema.org/name> "R" .\n')
+    result = subprocess.run([*SEGB, "check", str(clean)], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0 and result.stdout.strip().endswith("0 violations, 0 warnings, 0 infos")
+    rules = tmp_path / "rules"
+    rules.mkdir()
+    (rules / "robot-named-r.rq").write_text(
+        "# id: robot-named-r\n# title: A robot named R\n# severity: violation\n# key: ?focus\n"
+        'SELECT ?time ?focus ?message WHERE { ?focus <http://schema.org/name> "R" . BIND ("named R" AS ?message) }\n'
+        "ORDER BY ?time ?focus\n"
+    )
+    flagged = subprocess.run([*SEGB, "check", str(clean), "--rules", str(rules)], capture_output=True, text=True,
+                             timeout=120)  # fmt: skip
+    assert flagged.returncode == 1
+    assert f"{clean}:1: violation: [robot-named-r] named R <https://example.org/r>" in flagged.stdout
+    missing = subprocess.run([*SEGB, "check", str(tmp_path / "nope.ttl")], capture_output=True, text=True, timeout=60)
+    assert missing.returncode != 0 and "no such file" in missing.stderr

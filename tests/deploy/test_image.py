@@ -44,7 +44,7 @@ def packages() -> list[str]:
     """Top-level folders of the checkout that setup.py installs under `segb_server`."""
     mapped = re.search(r"CODE_FOLDERS = \(([^)]*)\)", (ROOT / "setup.py").read_text())
     assert mapped, "setup.py names its CODE_FOLDERS"
-    return sorted([*re.findall(r'"([a-z_]+)"', mapped.group(1)), "sparql"])
+    return sorted([*re.findall(r'"([a-z_]+)"', mapped.group(1)), "sparql", "rules"])
 
 
 def test_lock_pins_every_runtime_dependency_with_hashes() -> None:
@@ -69,7 +69,7 @@ def test_build_stage_installs_the_lock_with_hashes_and_copies_every_package() ->
     assert "--require-hashes -r requirements.lock" in runs
     copied = {source for sources, _ in stage_copies(build_stage()) for source in sources}
     assert {"requirements.lock", "pyproject.toml", "setup.py", "README.md"} <= copied
-    assert packages() == ["backend", "examples", "sparql", "ui"]
+    assert packages() == ["backend", "examples", "rules", "sparql", "ui"]
     assert set(packages()) <= copied  # `segb demo` and `segb serve --demo` import examples.emotion_mirror
 
 
@@ -152,6 +152,7 @@ def test_package_built_from_the_build_stage_copies_holds_every_runtime_file(tmp_
     assert needed - in_wheel == set()
     assert "segb_server/ui/static/vendor/cytoscape/cytoscape.min.js" in in_wheel
     assert "segb_server/sparql/reports/participants.rq" in in_wheel
+    assert "segb_server/rules/late-answer.rq" in in_wheel and "segb_server/rules/time-not-datetime.ttl" in in_wheel
     assert not any(name.startswith(("backend/", "ui/", "examples/")) for name in in_wheel)  # nothing top-level
     entry_points = next(name for name in in_wheel if name.endswith("entry_points.txt"))
     assert "segb = segb_server.backend.cli:main" in zipfile.ZipFile(wheel).read(entry_points).decode()

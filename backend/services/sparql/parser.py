@@ -63,4 +63,9 @@ def parse_update(text: str) -> CompValue:
         return parseUpdate(text)
 
 
+def exclusive() -> threading.Lock:
+    """The parser's lock, for code that parses through rdflib on its own (pySHACL): `with exclusive(): …`."""
+    return _lock
+
+
 parse_query("PREFIX warm: <urn:x:> SELECT ?s WHERE { ?s warm:p <urn:x:o> FILTER (?s != <urn:x:s>) } LIMIT 1")
