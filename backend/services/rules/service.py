@@ -21,7 +21,6 @@ from pyoxigraph import NamedNode
 from segb_server.backend.services.errors import Conflict, InvalidParameter
 from segb_server.backend.services.rules.catalog import FOLDER, SEVERITIES, Rule, RuleCatalog
 from segb_server.backend.services.rules.findings import Finding, finding, order_key
-from segb_server.backend.services.rules.kept_rows import count_rows, rows_about
 from segb_server.backend.services.rules.shape_view import ShapeFindings, check_shapes
 from segb_server.backend.services.rules.shapes import ShapeRule
 from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, Parameter, to_term
@@ -197,7 +196,7 @@ class FindingsService:
             elif rule.query is not None and self.kept is not None and (kept := self.kept.reports.get(rule.query.name)) \
                     and kept.ready:  # fmt: skip
                 bound, compared = self._bound(rule, {}), kept.layout.plan.column_filters
-                rows = [row for row in rows_about(self.kept.rows, kept.layout, iris) if _passes(row, compared, bound)]
+                rows = [row for row in self.kept.rows.rows_of(kept.layout, iris) if _passes(row, compared, bound)]
             elif self._building(rule):
                 rows = []
             else:
@@ -229,7 +228,7 @@ class FindingsService:
         if self.kept is not None and rule.query is not None:
             projection = self.kept.reports.get(rule.query.name)
             if projection is not None and projection.ready:
-                return count_rows(self.kept.rows, projection.layout, self._bound(rule, filters))
+                return self.kept.rows.count(projection.layout, self._bound(rule, filters))
             if projection is not None:
                 return 0  # being built (see `_read`)
         return len(self.evaluate_rule(rule, filters))
