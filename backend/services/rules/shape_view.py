@@ -19,6 +19,7 @@ from pathlib import Path
 
 import orjson
 from pyoxigraph import Literal, NamedNode
+from rdflib import Graph
 
 from segb_server.backend.services.errors import InvalidParameter
 from segb_server.backend.services.rules.shapes import Context, ShapeResult, ShapeRule, read_predicates, statements
@@ -252,19 +253,34 @@ def check_shapes(rule: ShapeRule, store: Store, named: set[str] | None) -> tuple
 def check_rules(
     rules: list[ShapeRule], store: Store, named: set[str] | None
 ) -> dict[str, tuple[set[str], dict[str, list[Found]]]]:
-    """`check_shapes` for several rules, their targets' statements read once for all."""
-    targets = {rule.rule.id: rule.targets(store, named) for rule in rules}
-    nodes = sorted({node for found in targets.values() for nodes in found.values() for node in nodes})
-    data, contexts = statements(store, nodes, read_predicates(rules)) if nodes else (None, {})
+    """`check_shapes` for several rules, their targets' statements read once for all: every candidate's (the
+    targets most shapes declare — a type, a predicate the node is the subject of — are read off them), or, for a
+    full check (`named` None), the targets the store answers for."""
+    if named is not None:
+        candidates = sorted(node for node in named if node.startswith("<"))
+        predicates = _union([rule.statement_predicates() for rule in rules])
+        data, contexts = statements(store, candidates, predicates) if candidates else (Graph(), {})
+        targets = {rule.rule.id: rule.targets_among(store, candidates, data) for rule in rules}
+    else:
+        targets = {rule.rule.id: rule.targets(store, None) for rule in rules}
+        nodes = sorted({node for found in targets.values() for nodes in found.values() for node in nodes})
+        data, contexts = statements(store, nodes, read_predicates(rules)) if nodes else (Graph(), {})
     checked: dict[str, tuple[set[str], dict[str, list[Found]]]] = {}
     for rule in rules:
         units = set().union(*targets[rule.rule.id].values()) if targets[rule.rule.id] else set()
-        results = rule.validate(data, targets[rule.rule.id]) if data is not None and units else []
+        results = rule.validate(data, targets[rule.rule.id]) if units else []
         found: dict[str, list[Found]] = {}
         for result in results:
             found.setdefault(result.focus, []).append(_record(result, contexts.get(result.focus, Context())))
         checked[rule.rule.id] = (units, found)
     return checked
+
+
+def _union(sets: list[frozenset[str] | None]) -> frozenset[str] | None:
+    """Every predicate any of them reads (None: one of them reads every statement)."""
+    if any(found is None for found in sets):
+        return None
+    return frozenset().union(*(found for found in sets if found is not None))
 
 
 def _record(result: ShapeResult, context: Context) -> Found:

@@ -62,7 +62,10 @@ class ShapeRule:
         self.rule = rule
         self.graph = Graph().parse(data=rule.shapes, format="turtle")
         self.shapes = sorted({s for s in self.graph.subjects(RDF.type, SH.NodeShape) if isinstance(s, URIRef)}, key=str)
-        self._targets = {shape: list(_target_queries(self.graph, shape)) for shape in self.shapes}
+        self._targets = {shape: _target_queries(self.graph, shape) for shape in self.shapes}
+        # Targets a node's own statements tell (its type, the predicates it is the subject of, its IRI): read from
+        # them when a batch's nodes are checked, instead of a store query each.
+        self._own = {shape: _own_targets(self.graph, shape) for shape in self.shapes}
         self.predicates = _read_predicates(self.graph)  # None: every statement of a focus node
 
     # --- targets -------------------------------------------------------------------------------------
@@ -76,6 +79,31 @@ class ShapeRule:
                 for chunk in [None] if listed is None else _chunks(listed):
                     found[shape].update(_ask_targets(store, query, chunk))
         return found
+
+    def targets_among(self, store: Store, candidates: list[str], data: Graph) -> dict[URIRef, set[str]]:
+        """Each shape's targets among `candidates` (N-Triples texts of IRIs) whose statements `data` holds: the
+        targets their own statements tell, from them; the others (objects of a predicate, a SPARQL target) from
+        the store."""
+        found: dict[URIRef, set[str]] = {shape: set() for shape in self.shapes}
+        for shape, (nodes, classes, predicates, asked) in self._own.items():
+            found[shape].update(node for node in candidates if node in nodes)
+            for node in candidates:
+                subject = URIRef(node[1:-1])
+                if any((subject, RDF.type, cls) in data for cls in classes) or any(
+                    (subject, predicate, None) in data for predicate in predicates
+                ):
+                    found[shape].add(node)
+            for query in asked:
+                for chunk in _chunks(candidates):
+                    found[shape].update(_ask_targets(store, query, chunk))
+        return found
+
+    def statement_predicates(self) -> frozenset[str] | None:
+        """What finding this rule's targets and checking them reads of a node (None: every statement)."""
+        if self.predicates is None:
+            return None
+        told = {str(p) for own in self._own.values() for p in own[2]}
+        return self.predicates | told | {str(RDF.type)}
 
     # --- checking ------------------------------------------------------------------------------------
 
@@ -188,22 +216,29 @@ def _shown(value: Node | None) -> str | None:
 # --- the shapes graph --------------------------------------------------------------------------------
 
 
-def _target_queries(graph: Graph, shape: Node) -> Iterator[str]:
+def _target_queries(graph: Graph, shape: Node) -> list[str]:
     """SELECT queries of ?this, one per target declaration of the shape (candidates are bound into their WHERE:
     a SPARQL-based target's own select too, so it reads only what the candidates say)."""
-    for node in graph.objects(shape, SH.targetNode):
-        if isinstance(node, URIRef):
-            yield f"SELECT DISTINCT ?this WHERE {{ VALUES ?this {{ <{node}> }} ?this ?anyPredicate ?anyObject }}"
-    for cls in graph.objects(shape, SH.targetClass):
-        yield f"SELECT DISTINCT ?this WHERE {{ ?this a <{cls}> }}"
-    for predicate in graph.objects(shape, SH.targetSubjectsOf):
-        yield f"SELECT DISTINCT ?this WHERE {{ ?this <{predicate}> ?anyObject }}"
-    for predicate in graph.objects(shape, SH.targetObjectsOf):
-        yield f"SELECT DISTINCT ?this WHERE {{ ?anySubject <{predicate}> ?this }}"
-    for target in graph.objects(shape, SH.target):
-        select_text = graph.value(target, SH.select)
-        if select_text is not None:
-            yield str(select_text)
+    nodes, classes, predicates, asked = _own_targets(graph, shape)
+    told = [
+        f"SELECT DISTINCT ?this WHERE {{ VALUES ?this {{ {node} }} ?this ?anyPredicate ?anyObject }}" for node in nodes
+    ]
+    told += [f"SELECT DISTINCT ?this WHERE {{ ?this a <{cls}> }}" for cls in classes]
+    told += [f"SELECT DISTINCT ?this WHERE {{ ?this <{predicate}> ?anyObject }}" for predicate in predicates]
+    return told + asked
+
+
+def _own_targets(graph: Graph, shape: Node) -> tuple[set[str], list[URIRef], list[URIRef], list[str]]:
+    """A shape's targets a node's own statements tell — its IRI (`sh:targetNode`), a type (`sh:targetClass`), a
+    predicate it is the subject of (`sh:targetSubjectsOf`) — and the queries of the others (the objects of a
+    predicate, a SPARQL-based target)."""
+    nodes = {f"<{node}>" for node in graph.objects(shape, SH.targetNode) if isinstance(node, URIRef)}
+    classes = [cls for cls in graph.objects(shape, SH.targetClass) if isinstance(cls, URIRef)]
+    predicates = [p for p in graph.objects(shape, SH.targetSubjectsOf) if isinstance(p, URIRef)]
+    asked = [f"SELECT DISTINCT ?this WHERE {{ ?anySubject <{p}> ?this }}"
+             for p in graph.objects(shape, SH.targetObjectsOf)]  # fmt: skip
+    asked += [str(text) for target in graph.objects(shape, SH.target) if (text := graph.value(target, SH.select))]
+    return nodes, classes, predicates, asked
 
 
 def _ask_targets(store: Store, query: str, chunk: list[str] | None) -> set[str]:
