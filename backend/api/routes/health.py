@@ -46,7 +46,8 @@ async def live() -> ProbeResponse:
         'the Virtuoso stack the body is `{"ready": true, "virtuoso": true}`. While the store has journal entries '
         'to apply, `"apply_lag": {"entries", "seconds"}` says how far behind it is, and '
         '`"reports_lag": {"entries", "seconds"}` how far the views (the reports\' rows and the graph index) are '
-        "behind the store (both absent once caught up)."
+        'behind the store (both absent once caught up); `"views_building"` lists the views being built (at '
+        "start, or after a change of their definitions), absent once built."
     ),
     response_class=ProbeResponse,
     responses={
@@ -82,6 +83,9 @@ async def ready(services: ServicesDep) -> ProbeResponse:
             body["apply_lag"] = {"entries": lag.apply_entries, "seconds": round(lag.apply_seconds, 3)}
         if lag.views_entries:  # the reports' rows and the graph index
             body["reports_lag"] = {"entries": lag.views_entries, "seconds": round(lag.views_seconds, 3)}
+        building = services.writes.building_views()
+        if building:
+            body["views_building"] = building
         return body, status
 
     body, status = await anyio.to_thread.run_sync(probe, limiter=_probe_threads)

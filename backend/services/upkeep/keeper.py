@@ -183,6 +183,14 @@ class ViewKeeper:
         behind = self._behind(applied, through)
         return behind, self.journal.age_of(through + 1) if behind else 0.0
 
+    def building(self, applied: int) -> list[str]:
+        """The views not ready yet (built at start, or rebuilt) while the store holds entries they do not:
+        what reads them answers from the store meanwhile, or (the findings) says it is building. None when
+        there is nothing they miss (an empty store: nothing to build)."""
+        if applied <= self.through:
+            return []
+        return [view.name for view in self.views if not view.ready]
+
     def _behind(self, applied: int, through: int) -> int:
         if not any(view.ready for view in self.views):
             return 0

@@ -128,6 +128,10 @@ class WritePath:
         views_entries, views_seconds = self.keeper.lag(self.applier.applied)
         return Lag(apply_entries, apply_seconds, views_entries, views_seconds)
 
+    def building_views(self) -> list[str]:
+        """The views being built while the store holds entries they miss (see `ViewKeeper.building`)."""
+        return self.keeper.building(self.applier.applied)
+
     def on_the_way(self, limit: int) -> list[Quad] | None:
         """The triples the store has and the views do not have yet (a reader adds them to what a view holds to
         answer as the store would); None when they cannot stand in for the store (a clearing among them, or
