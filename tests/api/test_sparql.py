@@ -306,6 +306,11 @@ def test_bad_requests(memory_api: LiveServer) -> None:
         f"{url}/sparql", content=too_long.encode(), headers={"Content-Type": "application/sparql-query"}
     )
     assert (response.status_code, response.json()["reason"]) == (413, "too_long")
+    only_comments = httpx.post(
+        f"{url}/sparql", content=b"# who spoke to ARI?\n", headers={"Content-Type": "application/sparql-query"}
+    )
+    assert (only_comments.status_code, only_comments.json()["reason"]) == (400, "empty")
+    assert only_comments.json()["detail"].startswith("The query is empty")  # not "SPARQL Update is not allowed"
 
 
 def test_only_auditors_and_admins_may_query(memory_store: Store) -> None:
