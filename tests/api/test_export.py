@@ -48,3 +48,13 @@ def test_concurrent_exports_of_several_batches_are_each_whole(server: str, media
         answers = list(pool.map(export, range(12)))
     assert answers == [(200, TRIPLES)] * 12
     assert export(0) == (200, TRIPLES)  # and the server still answers afterwards
+
+
+@pytest.mark.parametrize("form", ["store", "received"])
+def test_a_turtle_export_of_several_batches_declares_each_prefix_once(server: str, form: str) -> None:
+    answer = httpx.get(f"{server}/events", params={"form": form}, headers={"Accept": "text/turtle"}, timeout=120)
+    assert answer.status_code == 200
+    declared = [line.split()[1] for line in answer.text.splitlines() if line.startswith("@prefix")]
+    assert "schema:" in declared and "prov:" in declared
+    assert len(declared) == len(set(declared)), sorted(declared)
+    assert sum(1 for _ in parse(answer.content, RdfFormat.TURTLE)) == TRIPLES
