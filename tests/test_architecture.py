@@ -64,3 +64,15 @@ def test_everything_imports_the_installed_names_never_the_bare_folders() -> None
         if name.split(".")[0] in bare
     ]
     assert found == []
+
+
+def test_the_api_dependencies_borrow_no_name_of_the_logging_module() -> None:
+    """A route reading `principal: Logger` looks like it takes a `logging.Logger`: the role's alias says what the
+    caller is instead."""
+    import logging
+
+    from segb_server.backend.api import deps
+
+    public = {name for name in vars(deps) if not name.startswith("_")}
+    assert public & set(dir(logging)) == set()
+    assert deps.Publisher is not None  # the logger role: a robot that publishes its logs
