@@ -9,6 +9,7 @@ import, while only one thread exists, so pyparsing settles its internal state be
 from __future__ import annotations
 
 import threading
+from functools import lru_cache
 
 from pyparsing import ParseResults
 from rdflib.plugins.sparql.algebra import translateQuery
@@ -24,8 +25,11 @@ def parse_query(text: str) -> ParseResults:
         return parseQuery(text)
 
 
+@lru_cache(maxsize=64)
 def translate_query(text: str) -> CompValue:
-    """rdflib's algebra of a SPARQL query (raises on syntax errors)."""
+    """rdflib's algebra of a SPARQL query (raises on syntax errors). Kept per text: every app built in a process
+    (a test's, a command's) plans the same report queries, a third of a second of parsing each. Shared, so
+    callers read it and never change it."""
     with _lock:
         return translateQuery(parseQuery(text)).algebra
 
