@@ -4,14 +4,15 @@ from __future__ import annotations
 
 import time
 
-import httpx
+from tests.support.in_process import Server, request
 
 
-def settle(base_url: str, timeout: float = 60) -> None:
-    """Return once readiness shows neither an apply lag nor a reports lag (posts are then in every view)."""
+def settle(server: Server, timeout: float = 60) -> None:
+    """Return once readiness shows neither an apply lag nor a reports lag (posts are then in every view).
+    `server`: a live server's URL, or the client of an app served in process."""
     deadline = time.monotonic() + timeout
     while True:
-        answer = httpx.get(f"{base_url}/healthz/ready", timeout=10)
+        answer = request(server, "GET", "/healthz/ready", timeout=10)
         body = answer.json()
         if answer.status_code == 200 and "apply_lag" not in body and "reports_lag" not in body:
             return
