@@ -225,7 +225,8 @@ def _rebuild(args: argparse.Namespace) -> int:
 def _copy_state(args: argparse.Namespace) -> int:
     from segb_server.backend.services.ops.leadership import LOCK_FILE, Leadership
     from segb_server.backend.services.shared_context.state import STATE_FILE, ContextState
-    from segb_server.backend.services.writing.journal import JOURNAL_FILE, Journal
+    from segb_server.backend.services.writing.journal import Journal
+    from segb_server.backend.services.writing.journal_file import journal_path
     from segb_server.backend.state.copying import CONTEXT_TABLES, JOURNAL_TABLES, TargetNotEmpty, copy_tables
     from segb_server.backend.state.opening import open_state
     from segb_server.backend.state.postgres import PostgresDatabase, redacted
@@ -235,7 +236,7 @@ def _copy_state(args: argparse.Namespace) -> int:
         return _fail("--to must be a postgresql:// URL")
     if settings.state_url == args.to:
         return _fail("the state is already in that database (STATE_URL)")
-    journal_file = settings.data_dir / JOURNAL_FILE
+    journal_file = journal_path(settings.data_dir)
     if not settings.state_url and not journal_file.is_file():
         return _fail(f"no journal to copy: {journal_file} does not exist")
     server = Leadership(settings.data_dir / LOCK_FILE)
@@ -243,7 +244,7 @@ def _copy_state(args: argparse.Namespace) -> int:
         return _fail(f"a server is running on {settings.data_dir} (it holds {LOCK_FILE}): stop it first")
     try:
         parts = (
-            (JOURNAL_FILE, "journal", JOURNAL_TABLES, Journal),
+            (journal_file.name, "journal", JOURNAL_TABLES, Journal),
             (STATE_FILE, "contexts", CONTEXT_TABLES, ContextState),
         )
         for file, writers, tables, keeper in parts:

@@ -39,7 +39,7 @@ def disk_api(tmp_path: Path) -> Iterator[LiveServer]:
 def test_concurrent_overlapping_posts_count_each_triple_once_and_are_receipted_before_the_answer(
     disk_api: LiveServer, tmp_path: Path
 ) -> None:
-    ledger_file = tmp_path / "ledger.sqlite3"
+    ledger_file = tmp_path / "journal.sqlite3"
 
     def robot(index: int) -> list[tuple[dict, bool]]:
         seen = []

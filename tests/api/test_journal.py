@@ -80,7 +80,7 @@ def test_deep_verification_finds_edited_content(disk_api: LiveServer, tmp_path: 
         "receipts": httpx.get(f"{disk_api.url}/ledger").json()["total"],
         "deep": True,
     }
-    with sqlite3.connect(tmp_path / "ledger.sqlite3") as journal:
+    with sqlite3.connect(tmp_path / "journal.sqlite3") as journal:
         rows = journal.execute("SELECT sequence, content FROM receipts WHERE content != x'' ORDER BY sequence")
         sequence, blob = next((number, blob) for number, blob in rows if b"Maria" in zlib.decompress(blob))
         edited = zlib.decompress(blob).replace(b"Maria", b"Marta")

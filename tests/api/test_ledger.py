@@ -73,7 +73,7 @@ def assert_chained(receipts: list[dict]) -> None:
 
 @pytest.fixture
 def disk_api(tmp_path: Path) -> Iterator[LiveServer]:
-    """An API that opens its own on-disk store, so the ledger is the file `<data_dir>/ledger.sqlite3`."""
+    """An API that opens its own on-disk store, so the journal is the file `<data_dir>/journal.sqlite3`."""
     with LiveServer(create_app(make_settings(store="oxigraph", data_dir=tmp_path))) as server:
         yield server
 
@@ -163,7 +163,7 @@ def test_a_memory_server_writes_no_ledger_file(tmp_path: Path) -> None:
     with LiveServer(create_app(make_settings(store="memory", data_dir=tmp_path))) as server:
         post_turtle(server.url, turtle(1))
         assert len(all_receipts(server.url)) == 1
-    assert not (tmp_path / "ledger.sqlite3").exists()
+    assert not (tmp_path / "journal.sqlite3").exists()
 
 
 def tamper(ledger_file: Path, statement: str) -> None:
@@ -176,7 +176,7 @@ def test_an_edited_receipt_is_a_hash_mismatch(disk_api: LiveServer, tmp_path: Pa
     log_ids = [post_turtle(disk_api.url, turtle(index))["log_id"] for index in range(5)]
     assert verify(disk_api.url) == {"valid": True, "receipts": 5}
 
-    tamper(tmp_path / "ledger.sqlite3", "UPDATE receipts SET triples_new = triples_new + 1 WHERE sequence = 3")
+    tamper(tmp_path / "journal.sqlite3", "UPDATE receipts SET triples_new = triples_new + 1 WHERE sequence = 3")
 
     assert verify(disk_api.url) == {
         "valid": False,
@@ -191,7 +191,7 @@ def test_an_edit_with_a_recomputed_hash_breaks_the_next_link(disk_api: LiveServe
     forged["receipt_hash"] = expected_hash(forged)
 
     tamper(
-        tmp_path / "ledger.sqlite3",
+        tmp_path / "journal.sqlite3",
         f"UPDATE receipts SET triples_new = 0, receipt_hash = '{forged['receipt_hash']}' WHERE sequence = 2",
     )
 
@@ -205,7 +205,7 @@ def test_an_edit_with_a_recomputed_hash_breaks_the_next_link(disk_api: LiveServe
 def test_a_deleted_receipt_is_a_sequence_gap(disk_api: LiveServer, tmp_path: Path) -> None:
     log_ids = [post_turtle(disk_api.url, turtle(index))["log_id"] for index in range(5)]
 
-    tamper(tmp_path / "ledger.sqlite3", "DELETE FROM receipts WHERE sequence = 3")
+    tamper(tmp_path / "journal.sqlite3", "DELETE FROM receipts WHERE sequence = 3")
 
     assert verify(disk_api.url) == {
         "valid": False,

@@ -395,6 +395,6 @@ def test_scaled_backends_with_the_state_in_postgres_run_natively(tmp_path: Path,
         with psycopg.connect(postgres.url("segb")) as connection:
             kept = connection.execute("SELECT COUNT(*) FROM receipts").fetchone()[0]
         assert kept == verified["receipts"]  # the chain lives in PostgreSQL
-        assert not (stack.directory / "backend-root" / "data" / "ledger.sqlite3").exists()
+        assert not (stack.directory / "backend-root" / "data" / "journal.sqlite3").exists()
         for backend in up.backends:
             assert "Traceback" not in backend.output()
