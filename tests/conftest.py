@@ -1,8 +1,10 @@
-"""Shared fixtures: settings isolated from the environment, real stores, a real Virtuoso, live servers."""
+"""Shared fixtures: settings isolated from the environment, real stores, a real Virtuoso, the API served in
+process, live servers."""
 
 from __future__ import annotations
 
 import os
+import sys
 import tempfile
 import uuid
 from collections.abc import Iterator
@@ -18,6 +20,7 @@ from segb_server.backend.store.base import Store
 from segb_server.backend.store.oxigraph import OxigraphStore
 from segb_server.backend.store.virtuoso import VirtuosoStore
 from tests.support.browser import CHROMIUM, CHROMIUM_ARGS
+from tests.support.in_process import InProcess
 from tests.support.live_server import LiveServer
 from tests.support.postgres import PostgresProcess
 from tests.support.virtuoso import VirtuosoProcess
@@ -39,6 +42,33 @@ set_hypothesis_home_dir(tempfile.mkdtemp(prefix="segb-test-hypothesis-"))
 def pytest_configure(config: pytest.Config) -> None:
     real_home = redirect_home()
     config.stash[_GUARD] = (real_home, take(ROOT, real_home))
+    sys.addaudithook(_refuse_unmarked_processes)
+
+
+# A test that starts a process (the segb command, a store, a browser, a tool) carries a marker saying so, so
+# the fast tier (`scripts/test.sh --fast`), which deselects these markers, runs no process but the server's own
+# query workers (multiprocessing, which Python does not audit as a subprocess).
+PROCESS_MARKERS = frozenset({"processes", "virtuoso", "postgres", "browser", "containers"})
+_RUNNING: list[pytest.Item] = []
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_protocol(item: pytest.Item) -> Iterator[None]:
+    _RUNNING.append(item)
+    try:
+        return (yield)
+    finally:
+        _RUNNING.pop()
+
+
+def _refuse_unmarked_processes(event: str, arguments: tuple[object, ...]) -> None:
+    if event != "subprocess.Popen" or not _RUNNING:
+        return
+    item = _RUNNING[-1]
+    if not PROCESS_MARKERS & {marker.name for marker in item.iter_markers()}:
+        raise RuntimeError(
+            f"{item.nodeid} starts a process ({arguments[0]!r}): mark it with one of {sorted(PROCESS_MARKERS)}"
+        )
 
 
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
@@ -127,15 +157,23 @@ def memory_store() -> Iterator[Store]:
 
 
 @pytest.fixture
-def api(store: Store) -> Iterator[LiveServer]:
-    """The API over real HTTP, on each store."""
-    with LiveServer(create_app(make_settings(), store=store)) as server:
-        yield server
+def api(store: Store) -> Iterator[InProcess]:
+    """The API served in this process (no socket), on each store."""
+    with InProcess(create_app(make_settings(), store=store)) as served:
+        yield served
 
 
 @pytest.fixture
-def memory_api(memory_store: Store) -> Iterator[LiveServer]:
-    """The API over real HTTP on a fresh in-memory store (for tests where the store kind is irrelevant)."""
+def memory_api(memory_store: Store) -> Iterator[InProcess]:
+    """The API served in this process on a fresh in-memory store (for tests where the store kind is irrelevant)."""
+    with InProcess(create_app(make_settings(), store=memory_store)) as served:
+        yield served
+
+
+@pytest.fixture
+def live_api(memory_store: Store) -> Iterator[LiveServer]:
+    """The API over real HTTP on a fresh in-memory store, for clients that need a socket (other HTTP libraries,
+    streams read with a timeout)."""
     with LiveServer(create_app(make_settings(), store=memory_store)) as server:
         yield server
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import ast
 import re
+from functools import cache
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -15,7 +16,8 @@ FACTORY = re.compile(r"^[\w.]+:(\w+)$")  # "package.module:name", as uvicorn is 
 BEING_REMOVED = {"backend/services/upkeep/kept_queries/rows.py": {"unit_of", "iri_unit"}}
 
 
-def used_names() -> set[str]:
+@cache
+def used_names() -> frozenset[str]:
     """Every name the code reads (`name`, `thing.name`, imports), names in `module:name` strings, and every word
     of the UI's templates."""
     names: set[str] = set()
@@ -32,9 +34,10 @@ def used_names() -> set[str]:
                     names.update(FACTORY.findall(node.value))
     for path in (ROOT / "ui" / "templates").rglob("*.html"):
         names.update(path.read_text(encoding="utf-8").replace("(", " ").replace(".", " ").split())
-    return names
+    return frozenset(names)
 
 
+@cache
 def definitions() -> dict[str, set[str]]:
     """Module file → its top-level functions and classes, but those a decorator registers (routes, validators)."""
     found: dict[str, set[str]] = {}

@@ -64,6 +64,7 @@ def compose(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
 HEALTHY = {"condition": "service_healthy"}
 
 
+@pytest.mark.containers
 def test_config_resolves_the_four_services_with_the_example_env(compose: dict[str, Any]) -> None:
     services = compose["services"]
     assert set(services) == {"virtuoso", "backend", "proxy", "ui"}
@@ -90,6 +91,7 @@ def test_config_resolves_the_four_services_with_the_example_env(compose: dict[st
     assert NGINX_CONF.is_file()
 
 
+@pytest.mark.containers
 def test_config_passes_the_example_env_to_the_containers(compose: dict[str, Any]) -> None:
     example = read_env_file(ENV_EXAMPLE)
     services = compose["services"]
@@ -105,6 +107,7 @@ def test_config_passes_the_example_env_to_the_containers(compose: dict[str, Any]
     assert "VIRTUOSO_PASSWORD" not in services["ui"]["environment"]  # the UI holds no store credentials
 
 
+@pytest.mark.containers
 def test_healthchecks_probe_each_container_s_own_service(compose: dict[str, Any]) -> None:
     services = compose["services"]
     assert "isql 1111 dba" in services["virtuoso"]["healthcheck"]["test"][1]
@@ -119,6 +122,7 @@ def test_healthchecks_probe_each_container_s_own_service(compose: dict[str, Any]
     assert services["ui"]["command"][-2:] == ["--ui-port", "8080"]
 
 
+@pytest.mark.containers
 def test_the_postgres_override_moves_the_state_to_a_postgres_service(compose: dict[str, Any], tmp_path: Path) -> None:
     services = resolved_compose(tmp_path, (COMPOSE_FILE, POSTGRES_OVERRIDE))["services"]
     assert set(services) == {"virtuoso", "backend", "proxy", "ui", "postgres"}
@@ -134,6 +138,7 @@ def test_the_postgres_override_moves_the_state_to_a_postgres_service(compose: di
     assert "ports" not in backend and backend["command"] == compose["services"]["backend"]["command"]
 
 
+@pytest.mark.containers
 def test_the_postgres_override_without_its_password_fails_naming_it(tmp_path: Path) -> None:
     env = "\n".join(line for line in ENV_EXAMPLE.read_text().splitlines() if not line.startswith("POSTGRES_PASSWORD"))
     result = run_compose_config(tmp_path, env, (COMPOSE_FILE, POSTGRES_OVERRIDE))
@@ -141,6 +146,7 @@ def test_the_postgres_override_without_its_password_fails_naming_it(tmp_path: Pa
     assert "set POSTGRES_PASSWORD in .env to use docker-compose.postgres.yaml" in result.stderr
 
 
+@pytest.mark.containers
 def test_config_without_the_virtuoso_password_fails_naming_it(tmp_path: Path) -> None:
     env = "\n".join(line for line in ENV_EXAMPLE.read_text().splitlines() if not line.startswith("VIRTUOSO_PASSWORD"))
     result = run_compose_config(tmp_path, env)

@@ -119,15 +119,16 @@ class ClientPublisher(SEGBPublisher):
 Server = str | httpx.Client  # a live server's base URL, or a client of an app served in process
 
 
-def publisher(server: Server, user: str | None = None, token: str | None = None) -> SEGBPublisher:
+def publisher_for(server: Server, user: str | None = None, token: str | None = None) -> SEGBPublisher:
     """The robot client's publisher for `server`."""
     if isinstance(server, str):
         return SEGBPublisher(base_url=server, token=token, default_user=user)
     return ClientPublisher(server, token=token, default_user=user)
 
 
-def request(server: Server, method: str, path: str, **options: Any) -> httpx.Response:
+def http(server: Server, method: str, path: str, **options: Any) -> httpx.Response:
     """One request to `server` (`path` from its root)."""
     if isinstance(server, httpx.Client):
+        options.pop("timeout", None)  # an in-process app has no socket to time out on; a live one's client has one
         return server.request(method, path, **options)
     return httpx.request(method, f"{server}{path}", **{"timeout": 60, **options})

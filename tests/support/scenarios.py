@@ -21,7 +21,7 @@ from semantic_log_generator import (
     SemanticSEGBLogger,
 )
 
-from tests.support.in_process import Server, publisher, request
+from tests.support.in_process import Server, http, publisher_for
 from tests.support.settle import settle
 
 ORO = "http://kb.openrobots.org#"
@@ -61,7 +61,7 @@ class Scenario:
     def publish_all(self, server: Server, token: str | None = None) -> list[dict]:
         """Run every step, publishing the changed robot's whole graph after each; return the responses once the
         server shows every post in its reports. `server`: a live server's URL or an in-process app's client."""
-        publishers = {name: publisher(server, name, token) for name in self.loggers}
+        publishers = {name: publisher_for(server, name, token) for name in self.loggers}
         responses: list[dict] = []
         self.run_steps(lambda robot: responses.append(self.loggers[robot].publish(publishers[robot])))
         settle(server)
@@ -264,7 +264,7 @@ def keep_busy(server: Server, robot: str, activities: int) -> None:
         f"<https://example.org/busy/a{i}> <http://www.gsi.upm.es/ontologies/segb/ns#wasPerformedBy> <{robot}> ."
         for i in range(activities)
     )
-    assert request(server, "POST", "/ttl", json={"ttl_content": busy}).status_code == 201
+    assert http(server, "POST", "/ttl", json={"ttl_content": busy}).status_code == 201
 
 
 def publish_message(server: Server, text: str) -> str:
@@ -276,5 +276,5 @@ def publish_message(server: Server, text: str) -> str:
     message = robot.log_message(
         text, message_id=f"live_{key}", sender=maria, language="en", generated_by_activity=heard
     )
-    publisher(server).publish_turtle(robot.serialize())
+    publisher_for(server).publish_turtle(robot.serialize())
     return str(message)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 
-from tests.support.in_process import Server, request
+from tests.support.in_process import Server, http
 
 
 def settle(server: Server, timeout: float = 60) -> None:
@@ -12,7 +12,7 @@ def settle(server: Server, timeout: float = 60) -> None:
     `server`: a live server's URL, or the client of an app served in process."""
     deadline = time.monotonic() + timeout
     while True:
-        answer = request(server, "GET", "/healthz/ready", timeout=10)
+        answer = http(server, "GET", "/healthz/ready", timeout=10)
         body = answer.json()
         if answer.status_code == 200 and "apply_lag" not in body and "reports_lag" not in body:
             return
