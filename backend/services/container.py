@@ -93,7 +93,7 @@ def build_services(
             apply_timeout=settings.ingest_apply_timeout_seconds,
             max_backlog=settings.journal_max_backlog,
         ),
-        reports=ReportService(catalog, store, cache, kept_reports),
+        reports=ReportService(catalog, store, cache, kept_reports, lag=writes.lag),
         graph=graph,
         explain=ExplainService(graph),
         shared_context=SharedContextService.open(
