@@ -1,10 +1,26 @@
 #!/usr/bin/env bash
-# The README's test command. Installs what the tests need — Debian's Virtuoso, Chromium, PostgreSQL and nginx
-# when missing, the pinned Python packages from requirements-test.lock (hash-checked), the project itself — then
-# runs pytest.
-# Extra arguments go to pytest, e.g. `./scripts/test.sh -m "not browser and not virtuoso"`.
+# The README's test commands.
+#
+# ./scripts/test.sh [pytest arguments]         the full suite, what CI runs. Installs what the tests need —
+#     Debian's Virtuoso, Chromium, PostgreSQL and nginx when missing, the pinned Python packages from
+#     requirements-test.lock (hash-checked), the project itself — then runs pytest.
+# ./scripts/test.sh --fast [pytest arguments]  the fast tier: every test that needs no Virtuoso, Chromium,
+#     PostgreSQL, Docker or process of its own, served in this process (`pytest --fast`, see tests/conftest.py).
+#     No apt step; the Python packages are installed only when they are missing.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+
+pip=(python3 -m pip install -q --disable-pip-version-check)
+install_python_packages() {
+  "${pip[@]}" --require-hashes -r requirements-test.lock
+  "${pip[@]}" --no-deps -e .
+}
+
+if [ "${1:-}" = "--fast" ]; then
+  shift
+  python3 -c "import segb_server.backend, pytest, hypothesis, schemathesis" 2>/dev/null || install_python_packages
+  exec python3 -m pytest --fast "$@"
+fi
 
 missing=()
 command -v virtuoso-t >/dev/null 2>&1 || missing+=(virtuoso-opensource-7-bin)
@@ -23,7 +39,5 @@ if ((${#missing[@]})); then
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
 fi
 
-pip=(python3 -m pip install -q --disable-pip-version-check)
-"${pip[@]}" --require-hashes -r requirements-test.lock
-"${pip[@]}" --no-deps -e .
+install_python_packages
 exec python3 -m pytest "$@"

@@ -39,6 +39,30 @@ hypothesis_settings.load_profile("segb")
 set_hypothesis_home_dir(tempfile.mkdtemp(prefix="segb-test-hypothesis-"))
 
 
+# The fast tier (`pytest --fast`, `./scripts/test.sh --fast`): every test but those needing a real part or a
+# process of their own, and the few that run for many seconds by design. The full suite runs them all.
+NOT_FAST = frozenset({"virtuoso", "browser", "postgres", "containers", "processes", "slow"})
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption(
+        "--fast",
+        action="store_true",
+        help=f"the fast tier: deselect the tests marked {', '.join(sorted(NOT_FAST))}",
+    )
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    if not config.getoption("--fast"):
+        return
+    kept, deselected = [], []
+    for item in items:
+        (deselected if NOT_FAST & {marker.name for marker in item.iter_markers()} else kept).append(item)
+    if deselected:
+        config.hook.pytest_deselected(items=deselected)
+        items[:] = kept
+
+
 def pytest_configure(config: pytest.Config) -> None:
     real_home = redirect_home()
     config.stash[_GUARD] = (real_home, take(ROOT, real_home))
