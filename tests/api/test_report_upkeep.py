@@ -11,8 +11,8 @@ import threading
 import httpx
 import pytest
 
-from bench.workloads import live_posts
 from tests.support.live_server import LiveServer
+from tests.support.robot_posts import live_posts
 from tests.support.settle import settle
 
 POSTS = 40
