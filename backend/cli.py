@@ -153,6 +153,7 @@ def _settings(args: argparse.Namespace, *names: str) -> Settings:
 def _serve(args: argparse.Namespace) -> int:
     names = ("host", "api_port", "ui_port", "backend_url", "api_workers")
     settings = _settings(args, *names)
+    from segb_server.backend.listening import CannotListen
     from segb_server.backend.serving import (
         WorkersRefused,
         check_shareable,
@@ -172,15 +173,23 @@ def _serve(args: argparse.Namespace) -> int:
         check_shareable(settings, demo=args.demo)
     except WorkersRefused as refused:
         return _fail(str(refused))
-    if args.only in (None, "api"):
-        print(f"SEGB API  http://{settings.host}:{settings.api_port}/docs", file=sys.stderr)
-    if args.only in (None, "ui"):
-        print(f"SEGB UI   http://{settings.host}:{settings.ui_port}/reports", file=sys.stderr)
-    if settings.api_workers > 1 and args.only != "ui":
-        hand_down({name: getattr(args, name) for name in ("store", "data_dir", *names) if getattr(args, name, None)})
-        serve_api_workers(settings, with_ui=args.only is None)
-    else:
-        serve(settings, api=args.only in (None, "api"), ui=args.only in (None, "ui"), demo=args.demo)
+
+    def listening() -> None:
+        if args.only in (None, "api"):
+            print(f"SEGB API  http://{settings.host}:{settings.api_port}/docs", file=sys.stderr)
+        if args.only in (None, "ui"):
+            print(f"SEGB UI   http://{settings.host}:{settings.ui_port}/reports", file=sys.stderr)
+
+    passed = ("store", "data_dir", *names)
+    try:
+        if settings.api_workers > 1 and args.only != "ui":
+            hand_down({name: getattr(args, name) for name in passed if getattr(args, name, None)})
+            serve_api_workers(settings, with_ui=args.only is None, listening=listening)
+        else:
+            api, ui = args.only in (None, "api"), args.only in (None, "ui")
+            serve(settings, api=api, ui=ui, demo=args.demo, listening=listening)
+    except CannotListen as error:  # a port that is taken: one line, which one and how to choose another
+        return _fail(str(error))
     return 0
 
 
