@@ -12,7 +12,10 @@ from typing import Any
 import httpx
 import pytest
 
+from segb_server.backend.api.app import create_app
 from tests.cli.test_cli import SEGB, clean_env, segb, wait_for
+from tests.conftest import make_settings
+from tests.support.in_process import InProcess
 from tests.support.live_server import LiveServer
 from tests.support.net import free_port
 from tests.support.settle import settle
@@ -29,6 +32,34 @@ SELECT DISTINCT ?event WHERE {
   FILTER (?first != ?second)
 }
 """
+
+
+# An emotion read on a person, by an activity not linked to the shared event of the exchange, about that person,
+# that the reading belongs to: what the reference UI's human-emotion panels need (reference-ui.md, report 3).
+EMOTIONS_WITHOUT_THEIR_EVENT = """
+PREFIX schema: <http://schema.org/>
+PREFIX segb: <http://www.gsi.upm.es/ontologies/segb/ns#>
+PREFIX onyx: <http://www.gsi.upm.es/ontologies/onyx/ns#>
+PREFIX oa: <http://www.w3.org/ns/oa#>
+PREFIX oro: <http://kb.openrobots.org#>
+SELECT ?activity ?person WHERE {
+  ?activity a onyx:EmotionAnalysis, segb:LoggedActivity ; segb:producedEntityResult ?annotation .
+  ?annotation onyx:hasEmotion ?emotion ; oa:hasTarget ?person .
+  ?person a oro:Human .
+  FILTER NOT EXISTS { ?activity schema:about ?event . ?event schema:about ?person }
+}
+"""
+
+
+def test_every_emotion_the_demo_reads_on_a_person_is_about_that_persons_shared_event(tmp_path: Path) -> None:
+    """As the tutorial's robot logs it, a reading on a face is `schema:about` the shared event of the utterance it
+    came with, and that event is about the person: the reference web UI shows such readings only."""
+    with InProcess(create_app(make_settings(store="memory", data_dir=tmp_path), demo=True)) as api:
+        settle(api.client)
+        timeline = api.get("/reports/emotion-timeline").json()["rows"]
+        unlinked = select_bindings(api.client, EMOTIONS_WITHOUT_THEIR_EVENT)
+    assert {row["targetName"] for row in timeline if row["targetKind"] == "human"} == {"Maria", "Carlos"}
+    assert unlinked == []
 
 
 def rows(url: str, name: str) -> list[dict[str, Any]]:
@@ -62,7 +93,7 @@ def test_segb_demo_fills_every_report_once(live_api: LiveServer) -> None:
 
     assert_nothing_overstated(live_api.url)
 
-    # The cases the reference reports drop: an emotion about no shared event, a state without location.
+    # Carlos's anger, read by TIAGo; and a case the reference reports drop: a state without location.
     carlos = [row for row in rows(live_api.url, "emotion-timeline") if row["targetName"] == "Carlos"]
     assert [(row["category"], row["robotName"]) for row in carlos] == [("anger", "TIAGo")]
     docking = [row for row in rows(live_api.url, "robot-states") if row["value"] == "docking"]
