@@ -11,9 +11,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 DEFINING = ("backend", "ui", "examples")
 USING = ("backend", "ui", "examples", "bench", "tests")
-# Found unused in a part of the tree being reworked now; removed with that work (then drop the entry).
 FACTORY = re.compile(r"^[\w.]+:(\w+)$")  # "package.module:name", as uvicorn is given an app factory
-BEING_REMOVED = {"backend/services/upkeep/kept_queries/rows.py": {"unit_of", "iri_unit"}}
 
 
 @cache
@@ -56,16 +54,5 @@ def definitions() -> dict[str, set[str]]:
 
 def test_every_top_level_function_and_class_is_used() -> None:
     used = used_names()
-    unused = {
-        f"{module}: {name}"
-        for module, names in definitions().items()
-        for name in names - BEING_REMOVED.get(module, set())
-        if name not in used
-    }
+    unused = {f"{module}: {name}" for module, names in definitions().items() for name in names if name not in used}
     assert sorted(unused) == []
-
-
-def test_what_is_being_removed_is_still_there_and_unused() -> None:
-    used, defined = used_names(), definitions()
-    for module, names in BEING_REMOVED.items():
-        assert names <= defined[module] and not names & used, f"{module}: drop the entry of BEING_REMOVED"

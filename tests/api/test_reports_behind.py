@@ -10,7 +10,7 @@ from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.conftest import make_settings
 from tests.support.in_process import UiOverApi
 from tests.support.scenarios import publish_message
-from tests.support.settle import settle
+from tests.support.settle import kept_rows, settle
 
 
 def test_rows_behind_the_log_say_how_far_on_the_api_and_on_the_page() -> None:
@@ -22,6 +22,7 @@ def test_rows_behind_the_log_say_how_far_on_the_api_and_on_the_page() -> None:
             api = served.api
             publish_message(api, "Before the views stopped.")
             settle(api)
+            kept_rows(api, "conversations")
             current = api.get("/reports/conversations").json()
             assert current["served_from"] == "rows" and current["behind"] is None
 

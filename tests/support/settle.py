@@ -19,3 +19,13 @@ def settle(server: Server, timeout: float = 60) -> None:
         if time.monotonic() > deadline:
             raise AssertionError(f"the server did not settle within {timeout} s: {body}")
         time.sleep(0.02)
+
+
+def kept_rows(server: Server, report: str, timeout: float = 60) -> None:
+    """Return once `report` is served from its kept rows: they are built as the server starts, a moment after it
+    answers (until then the report is evaluated in full, and readiness tells no lag)."""
+    deadline = time.monotonic() + timeout
+    while http(server, "GET", f"/reports/{report}", params={"limit": 1}).json()["served_from"] != "rows":
+        if time.monotonic() > deadline:
+            raise AssertionError(f"{report} was not served from its rows within {timeout} s")
+        time.sleep(0.02)
