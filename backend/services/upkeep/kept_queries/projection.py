@@ -16,8 +16,6 @@ import re
 from collections.abc import Iterable
 from dataclasses import replace
 
-from pyoxigraph import RdfFormat, Triple, parse
-
 from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, CatalogQuery
 from segb_server.backend.services.upkeep.delta import Delta
 from segb_server.backend.services.upkeep.kept_queries.facets import FacetPairs, facet_patterns
@@ -31,7 +29,7 @@ from segb_server.backend.services.upkeep.kept_queries.plan import (
 from segb_server.backend.services.upkeep.kept_queries.rows import KeptRows, Layout, Page, Row
 from segb_server.backend.store.base import Store, Term, select
 from segb_server.backend.store.sparql_text import code_only
-from segb_server.backend.store.terms import bind_rows, bind_values, term_text
+from segb_server.backend.store.terms import bind_texts, bind_values, term_text
 
 logger = logging.getLogger("segb.reports")
 
@@ -169,7 +167,7 @@ class KeptQuery:
             bound = (
                 self.text
                 if chunk is None
-                else bind_rows(self.text, [self.unit], [[_term(unit)] for unit in chunk], wrap=self.store.wraps_values)
+                else bind_texts(self.text, [self.unit], [[unit] for unit in chunk], wrap=self.store.wraps_values)
             )
             for row in select(self.store, bound).rows:
                 unit = row.get(self.unit)
@@ -180,13 +178,6 @@ class KeptQuery:
 
 def _slices(items: list[str], size: int) -> list[list[str] | None]:
     return [items[start : start + size] for start in range(0, len(items), size)]
-
-
-def _term(text: str) -> Term:
-    """The term whose N-Triples text is `text` (how units are stored)."""
-    term = next(iter(parse(f"<urn:x:s> <urn:x:p> {text} .".encode(), RdfFormat.N_TRIPLES))).object
-    assert not isinstance(term, Triple)
-    return term
 
 
 def _projection(query: CatalogQuery, plan: ReportPlan, store: Store, rows: KeptRows) -> KeptQuery:

@@ -20,6 +20,7 @@ import json
 import struct
 from collections.abc import Collection, Iterable, Sequence
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -58,13 +59,13 @@ class Layout:
     parameters: dict[str, Parameter]
     unit: str  # the variable (without ?) whose values are the rows' keys
 
-    @property
+    @cached_property
     def filter_columns(self) -> dict[str, str]:
         """Column variable (without ?) → SQL column, for each column a filter compares from a column of its own
         (a filter on the first column of the sort key compares the sort key: `sorted_by`)."""
         return {f.column[1:]: f"f_{f.column[1:]}" for f in self.plan.column_filters if f.column[1:] != self.sorted_by}
 
-    @property
+    @cached_property
     def sorted_by(self) -> str | None:
         """The first variable of the sort key, when an equality filter on an IRI compares it: rows of one value
         are then one range of the sort key, read from its index."""
@@ -75,7 +76,7 @@ class Layout:
                 return first[1:]
         return None
 
-    @property
+    @cached_property
     def anchors(self) -> dict[str, str]:
         """Anchor variable → SQL column: the filter column of the same variable when it holds the IRI's term."""
         columns = self.filter_columns
@@ -88,10 +89,13 @@ class Layout:
         return variable in self.filter_columns and self.kind_of(variable) == "iri"
 
     def kind_of(self, column: str) -> str:
-        kinds = {f.column[1:]: self.parameters[f.parameter].type for f in self.plan.column_filters}
-        return kinds[column]
+        return self._kinds[column]
 
-    @property
+    @cached_property
+    def _kinds(self) -> dict[str, str]:
+        return {f.column[1:]: self.parameters[f.parameter].type for f in self.plan.column_filters}
+
+    @cached_property
     def own_anchors(self) -> dict[str, str]:
         """The anchors stored in columns of their own."""
         return {var: sql for var, sql in self.anchors.items() if not self._term_column(var)}
