@@ -53,6 +53,8 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    # The container tier runs after everything else: it takes minutes, and the rest reports first.
+    items.sort(key=lambda item: item.get_closest_marker("containers") is not None)  # stable: order kept within
     if not config.getoption("--fast"):
         return
     kept, deselected = [], []

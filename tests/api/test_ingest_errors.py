@@ -11,18 +11,34 @@ import pytest
 
 from segb_server.backend.api.app import create_app
 from segb_server.backend.store.base import Store
+from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.conftest import make_settings
 from tests.support.in_process import InProcess
 
 GOOD = '@prefix ex: <https://ex.org/> .\nex:ari a ex:Robot ;\n    ex:name "ARI" .\n'
 
 
+def small_limits(store: Store) -> InProcess:
+    """The API with small limits on `store`, which holds GOOD (two triples) once entered."""
+    settings = make_settings(max_body_bytes=4096, max_decompressed_bytes=8192, max_triples_per_post=50)
+    return InProcess(create_app(settings, store=store))
+
+
 @pytest.fixture
 def small_limits_api(memory_store: Store) -> Iterator[InProcess]:
-    settings = make_settings(max_body_bytes=4096, max_decompressed_bytes=8192, max_triples_per_post=50)
-    with InProcess(create_app(settings, store=memory_store)) as server:
+    with small_limits(memory_store) as server:
         server.post("/ttl", json={"ttl_content": GOOD}).raise_for_status()
         yield server
+
+
+@pytest.fixture(scope="module")
+def refusing_api() -> Iterator[tuple[InProcess, Store]]:
+    """One server for every bad input: each is refused and writes nothing, so each finds the store as it was."""
+    store = OxigraphStore("http://amor-segb/events")
+    with small_limits(store) as server:
+        server.post("/ttl", json={"ttl_content": GOOD}).raise_for_status()
+        yield server, store
+    store.close()
 
 
 def post(server: InProcess, **kwargs: object) -> httpx.Response:
@@ -100,9 +116,8 @@ BAD_INPUTS = {
 
 
 @pytest.mark.parametrize("case", BAD_INPUTS, ids=list(BAD_INPUTS))
-def test_bad_input_is_refused_and_nothing_is_written(
-    small_limits_api: InProcess, memory_store: Store, case: str
-) -> None:
+def test_bad_input_is_refused_and_nothing_is_written(refusing_api: tuple[InProcess, Store], case: str) -> None:
+    small_limits_api, memory_store = refusing_api
     request, status, message = BAD_INPUTS[case]
     before = small_limits_api.get("/events", headers={"Accept": "application/n-triples"}).text
 

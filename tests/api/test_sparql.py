@@ -22,7 +22,8 @@ from segb_server.backend.api.app import create_app
 from segb_server.backend.auth import mint_token
 from segb_server.backend.services.sparql.guard import MAX_QUERY_BYTES
 from segb_server.backend.store.base import Store
-from tests.conftest import make_settings
+from segb_server.backend.store.oxigraph import OxigraphStore
+from tests.conftest import STORE_KINDS, make_settings, virtuoso_store
 from tests.support.in_process import InProcess, Server, http
 from tests.support.live_server import LiveServer
 from tests.support.scenarios import Scenario, lobby
@@ -61,11 +62,21 @@ class Published:
         }
 
 
-@pytest.fixture
-def published(api: InProcess, store: Store) -> Published:
-    scenario = lobby()
-    scenario.publish_all(api.client)
-    return Published(api.client, store, scenario)
+@pytest.fixture(scope="module", params=STORE_KINDS)
+def published(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Published]:
+    """The lobby published once per store for this module's tests, which only read it (those that try to write
+    check that nothing changed)."""
+    if request.param == "virtuoso":
+        store: Store = virtuoso_store(request.getfixturevalue("virtuoso"))
+    else:
+        store = OxigraphStore("http://amor-segb/events", tmp_path_factory.mktemp("sparql") / "oxigraph")
+    with InProcess(create_app(make_settings(), store=store)) as api:
+        scenario = lobby()
+        scenario.publish_all(api.client)
+        yield Published(api.client, store, scenario)
+    if request.param == "virtuoso":
+        store.clear()
+    store.close()
 
 
 @pytest.fixture

@@ -23,7 +23,7 @@ def settle(server: Server, timeout: float = 60) -> None:
 
 def kept_rows(server: Server, report: str, timeout: float = 60) -> None:
     """Return once `report` is served from its kept rows: they are built as the server starts, a moment after it
-    answers (until then the report is evaluated in full, and readiness tells no lag)."""
+    answers (until then the report is evaluated in full, and readiness tells no lag: `settle` after this)."""
     deadline = time.monotonic() + timeout
     while http(server, "GET", f"/reports/{report}", params={"limit": 1}).json()["served_from"] != "rows":
         if time.monotonic() > deadline:
