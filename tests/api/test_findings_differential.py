@@ -23,7 +23,7 @@ from tests.conftest import STORE_KINDS, make_settings, virtuoso_store
 from tests.support.histories import EX
 from tests.support.in_process import InProcess, Server, http
 from tests.support.rule_histories import RuleHistory
-from tests.support.settle import settle
+from tests.support.settle import findings_built, settle
 
 RULES = RuleCatalog(PACKAGE_ROOT / "rules")
 
@@ -62,6 +62,7 @@ def server(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[tuple[htt
     else:
         store = OxigraphStore("http://amor-segb/events", tmp_path / "oxigraph")
     with InProcess(create_app(make_settings(store=request.param, data_dir=tmp_path), store=store)) as served_app:
+        findings_built(served_app.client)  # built as the server starts: from then on `settle` tells their lag
         yield served_app.client, store
     if request.param == "virtuoso":
         store.clear()

@@ -98,15 +98,15 @@ REFERENCE_ENTRY_KEYS = {"timestamp", "level", "logger", "request_id", "actor", "
 
 def test_the_answer_is_a_superset_of_the_reference_shape(server: InProcess) -> None:
     for n in range(3):
-        server.get("/auth/whoami", headers={"X-Request-ID": f"shape-{n}", **bearer("eve", "auditor")})
+        server.get("/auth/whoami", headers={"X-Request-ID": f"ref-shape-{n}", **bearer("eve", "auditor")})
 
     # What the reference UI's /system/logs page sends: its row count (up to 2,000), a level, a text.
-    answer = read_log(server, limit=2000, level="info", contains="  SHAPE-  ")
+    answer = read_log(server, limit=2000, level="info", contains="  REF-SHAPE-  ")
     assert answer.status_code == 200, answer.text
     body = answer.json()
     assert REFERENCE_KEYS | {"source"} == set(body)
     assert body["log_file"] is None  # kept in memory: there is no file
-    assert body["filters"] == {"limit": 2000, "level": "INFO", "contains": "SHAPE-"}  # normalised, trimmed
+    assert body["filters"] == {"limit": 2000, "level": "INFO", "contains": "REF-SHAPE-"}  # normalised, trimmed
     assert body["count"] == len(body["entries"]) == 3
     for entry in body["entries"]:
         assert set(entry) >= REFERENCE_ENTRY_KEYS
@@ -115,7 +115,7 @@ def test_the_answer_is_a_superset_of_the_reference_shape(server: InProcess) -> N
         raw = json.loads(entry["raw"])
         assert raw == {key: value for key, value in entry.items() if key in raw}
         assert raw["request_id"] == entry["request_id"] and "raw" not in raw
-    assert [entry["request_id"] for entry in body["entries"]] == ["shape-2", "shape-1", "shape-0"]
+    assert [entry["request_id"] for entry in body["entries"]] == ["ref-shape-2", "ref-shape-1", "ref-shape-0"]
 
 
 def test_a_blank_level_or_text_is_no_filter_as_the_reference_takes_it(server: InProcess) -> None:

@@ -29,3 +29,13 @@ def kept_rows(server: Server, report: str, timeout: float = 60) -> None:
         if time.monotonic() > deadline:
             raise AssertionError(f"{report} was not served from its rows within {timeout} s")
         time.sleep(0.02)
+
+
+def findings_built(server: Server, timeout: float = 60) -> None:
+    """Return once no audit rule's findings are still being first built (the views a server builds as it starts;
+    `settle` after this)."""
+    deadline = time.monotonic() + timeout
+    while "building" in http(server, "GET", "/findings", params={"limit": 1}).json()["served_from"].values():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"the findings were still being built after {timeout} s")
+        time.sleep(0.02)
