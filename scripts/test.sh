@@ -22,7 +22,15 @@ install_python_packages() {
 if [ "${1:-}" = "--fast" ]; then
   shift
   python3 -c "import segb_server.backend, pytest, hypothesis, schemathesis" 2>/dev/null || install_python_packages
-  exec python3 -m pytest --fast "$@"
+  # The tests' stores, journals and views in memory where /dev/shm is: the fast tier spends a fifth of its time
+  # waiting for the disk's syncs otherwise. Removed when the run ends.
+  if [ -d /dev/shm ] && [ -w /dev/shm ]; then
+    TMPDIR=$(mktemp -d /dev/shm/segb-fast-tests-XXXXXX)
+    export TMPDIR
+    trap 'rm -rf "$TMPDIR"' EXIT
+  fi
+  python3 -m pytest --fast "$@"
+  exit
 fi
 
 missing=()
