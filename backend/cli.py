@@ -161,6 +161,7 @@ def _settings(args: argparse.Namespace, *names: str) -> Settings:
 def _serve(args: argparse.Namespace) -> int:
     names = ("host", "api_port", "ui_port", "backend_url", "api_workers")
     settings = _settings(args, *names)
+    from segb_server.backend.listening import CannotListen
     from segb_server.backend.serving import (
         DataDirUnwritable,
         WorkersRefused,
@@ -185,15 +186,23 @@ def _serve(args: argparse.Namespace) -> int:
         check_shareable(settings, demo=args.demo)
     except (WorkersRefused, DataDirUnwritable) as refused:
         return _fail(str(refused))
-    if args.only in (None, "api"):
-        print(f"SEGB API  http://{settings.host}:{settings.api_port}/docs", file=sys.stderr)
-    if args.only in (None, "ui"):
-        print(f"SEGB UI   http://{settings.host}:{settings.ui_port}/reports", file=sys.stderr)
-    if settings.api_workers > 1 and args.only != "ui":
-        hand_down({name: getattr(args, name) for name in ("store", "data_dir", *names) if getattr(args, name, None)})
-        serve_api_workers(settings, with_ui=args.only is None)
-    else:
-        serve(settings, api=args.only in (None, "api"), ui=args.only in (None, "ui"), demo=args.demo)
+
+    def listening() -> None:
+        if args.only in (None, "api"):
+            print(f"SEGB API  http://{settings.host}:{settings.api_port}/docs", file=sys.stderr)
+        if args.only in (None, "ui"):
+            print(f"SEGB UI   http://{settings.host}:{settings.ui_port}/reports", file=sys.stderr)
+
+    passed = ("store", "data_dir", *names)
+    try:
+        if settings.api_workers > 1 and args.only != "ui":
+            hand_down({name: getattr(args, name) for name in passed if getattr(args, name, None)})
+            serve_api_workers(settings, with_ui=args.only is None, listening=listening)
+        else:
+            api, ui = args.only in (None, "api"), args.only in (None, "ui")
+            serve(settings, api=api, ui=ui, demo=args.demo, listening=listening)
+    except CannotListen as error:  # a port that is taken: one line, which one and how to choose another
+        return _fail(str(error))
     return 0
 
 
@@ -290,7 +299,8 @@ def _upkeep(args: argparse.Namespace) -> int:
 def _copy_state(args: argparse.Namespace) -> int:
     from segb_server.backend.services.ops.leadership import LOCK_FILE, Leadership
     from segb_server.backend.services.shared_context.state import STATE_FILE, ContextState
-    from segb_server.backend.services.writing.journal import JOURNAL_FILE, Journal
+    from segb_server.backend.services.writing.journal import Journal
+    from segb_server.backend.services.writing.journal_file import journal_path
     from segb_server.backend.state.copying import CONTEXT_TABLES, JOURNAL_TABLES, TargetNotEmpty, copy_tables
     from segb_server.backend.state.opening import open_state
     from segb_server.backend.state.postgres import PostgresDatabase, redacted
@@ -300,7 +310,7 @@ def _copy_state(args: argparse.Namespace) -> int:
         return _fail("--to must be a postgresql:// URL")
     if settings.state_url == args.to:
         return _fail("the state is already in that database (STATE_URL)")
-    journal_file = settings.data_dir / JOURNAL_FILE
+    journal_file = journal_path(settings.data_dir)
     if not settings.state_url and not journal_file.is_file():
         return _fail(f"no journal to copy: {journal_file} does not exist")
     server = Leadership(settings.data_dir / LOCK_FILE)
@@ -308,7 +318,7 @@ def _copy_state(args: argparse.Namespace) -> int:
         return _fail(f"a server is running on {settings.data_dir} (it holds {LOCK_FILE}): stop it first")
     try:
         parts = (
-            (JOURNAL_FILE, "journal", JOURNAL_TABLES, Journal),
+            (journal_file.name, "journal", JOURNAL_TABLES, Journal),
             (STATE_FILE, "contexts", CONTEXT_TABLES, ContextState),
         )
         for file, writers, tables, keeper in parts:

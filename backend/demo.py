@@ -9,8 +9,10 @@ graph explorer shows every kind of record the server audits.
   utterance too (same subject, text and time: *matched*, one shared event for both robots' activities). It
   also overhears her second one half a second late without seeing who spoke: a near miss the resolver keeps
   apart as *ambiguous*, so the shared-context page has one case to review.
-* Then Carlos talks to TIAGo. The emotion TIAGo reads on his face is about no shared event, and TIAGo's
-  last state (docking) has no location: the cases the reference reports drop and this server keeps.
+* Every expression a robot reads on a face is about the shared event of the utterance it came with, as the
+  example robot (and the tutorial's) logs it: the reference web UI's human-emotion panels show only such readings.
+* Then Carlos talks to TIAGo. TIAGo's last state (docking) has no location: a case the reference reports drop and
+  this server keeps.
 
 Timestamps are fixed, and so are the shared-context URIs the resolver derives from them. Some IRIs the client
 mints are random (emotions, state properties), so the Turtle differs between runs; loading it twice would

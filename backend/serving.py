@@ -18,13 +18,15 @@ import logging
 import multiprocessing
 import os
 import signal
+import socket
 import tempfile
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from typing import TYPE_CHECKING, Any
 
 import uvicorn
 
 from segb_server.backend.config import Settings
+from segb_server.backend.listening import CannotListen, Listener
 
 if TYPE_CHECKING:
     from fastapi import FastAPI
@@ -126,10 +128,34 @@ def hand_down(overrides: Mapping[str, object]) -> None:
         os.environ[name.upper()] = str(value)
 
 
-def serve(settings: Settings, *, api: bool, ui: bool, demo: bool) -> None:
-    """The API and/or the UI in this process, until Ctrl-C or SIGTERM stops both."""
+def _nothing() -> None:
+    pass
+
+
+def api_listener(settings: Settings) -> Listener:
+    return Listener("API", settings.host, settings.api_port, "--api-port", "API_PORT")
+
+
+def ui_listener(settings: Settings) -> Listener:
+    return Listener("UI", settings.host, settings.ui_port, "--ui-port", "UI_PORT")
+
+
+def serve(settings: Settings, *, api: bool, ui: bool, demo: bool, listening: Callable[[], None] = _nothing) -> None:
+    """The API and/or the UI in this process, until Ctrl-C or SIGTERM stops both. Their ports are bound first,
+    before the store is opened: a port that is taken raises CannotListen and nothing has started; `listening` is
+    called once both are bound."""
     from segb_server.backend.api.app import create_app
 
+    listeners = [*([api_listener(settings)] if api else []), *([ui_listener(settings)] if ui else [])]
+    sockets: list[socket.socket] = []
+    try:
+        for listener in listeners:
+            sockets.append(listener.open())
+    except CannotListen:
+        for opened in sockets:
+            opened.close()
+        raise
+    listening()
     configs = []
     if api:
         configs.append(uvicorn.Config(create_app(settings, demo=demo), port=settings.api_port, **_options(settings)))
@@ -137,11 +163,18 @@ def serve(settings: Settings, *, api: bool, ui: bool, demo: bool) -> None:
         configs.append(_ui_config(settings))
     # uvicorn's own choice of loop (uvloop when installed), which `asyncio.run` would bypass.
     with asyncio.Runner(loop_factory=configs[0].get_loop_factory()) as runner:
-        runner.run(_serve_together([_QuietServer(config) for config in configs]))
+        runner.run(
+            _serve_together([(_QuietServer(config), sock) for config, sock in zip(configs, sockets, strict=True)])
+        )
 
 
-def serve_api_workers(settings: Settings, *, with_ui: bool) -> None:
-    """The API in `settings.api_workers` processes (and the UI in a process of its own) until stopped."""
+def serve_api_workers(settings: Settings, *, with_ui: bool, listening: Callable[[], None] = _nothing) -> None:
+    """The API in `settings.api_workers` processes (and the UI in a process of its own) until stopped. The ports
+    are checked first (uvicorn binds them itself): a port that is taken raises CannotListen."""
+    api_listener(settings).check()
+    if with_ui:
+        ui_listener(settings).check()
+    listening()
     ui = None
     if with_ui:
         ui = multiprocessing.get_context("spawn").Process(target=_serve_ui, name="segb-ui", daemon=True)
@@ -188,13 +221,13 @@ class _QuietServer(uvicorn.Server):
         yield
 
 
-async def _serve_together(servers: list[uvicorn.Server]) -> None:
+async def _serve_together(servers: list[tuple[uvicorn.Server, socket.socket]]) -> None:
     loop = asyncio.get_running_loop()
 
     def stop() -> None:
-        for server in servers:
+        for server, _ in servers:
             server.should_exit = True
 
     for signum in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(signum, stop)
-    await asyncio.gather(*(server.serve() for server in servers))
+    await asyncio.gather(*(server.serve(sockets=[sock]) for server, sock in servers))

@@ -36,8 +36,9 @@ from bench.report import Figures, write_report
 from bench.runs import Cumulative, cumulative, journal_size, many_robots, small_posts, stored_triples
 from bench.server import ROOT, baseline_server, null_server, python_path, segb_server
 from bench.virtuoso import count_graph, measure_floor
-from bench.workloads import LivePost, cumulative_posts, event_deltas, live_posts, ntriples_of, replicate
+from bench.workloads import cumulative_posts
 from tests.support.postgres import PostgresProcess
+from tests.support.robot_posts import LivePost, event_deltas, live_posts, ntriples_of, replicate
 from tests.support.virtuoso import VirtuosoProcess
 
 GRAPH = "http://amor-segb/events"

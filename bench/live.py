@@ -24,7 +24,7 @@ from bench.crosscheck import rows_of_query
 from bench.measure import Latency
 from bench.probes import LagFigures, ReadinessProbe, wait_caught_up
 from bench.server import ServerProcess, ui_server
-from bench.workloads import LivePost, robot_of
+from tests.support.robot_posts import LivePost, robot_of
 
 POLL_SECONDS = 0.02
 GIVE_UP_SECONDS = 60.0

@@ -13,8 +13,8 @@ from datetime import UTC, datetime, timedelta
 
 from rdflib import Graph
 
-from bench.workloads import RecordingGraph
 from segb_server.examples.receptionist import log_visit, receptionist
+from tests.support.robot_posts import RecordingGraph
 
 T0 = datetime(2026, 1, 5, 8, 0, tzinfo=UTC)
 SECONDS_PER_VISIT = 7  # visits are this far apart in the log's own time

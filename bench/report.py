@@ -201,7 +201,7 @@ def _cumulative_section(f: Figures) -> list[str]:
     journaled = [(name, run.journal) for name, run in f.cumulative.items() if run.journal]
     if journaled:
         lines += [
-            "The journal on disk after the last post (`DATA_DIR/ledger.sqlite3` and its `-wal`), against the final",
+            "The journal on disk after the last post (`DATA_DIR/journal.sqlite3` and its `-wal`), against the final",
             "graph as N-Triples (the server's own export) and everything the robot sent:",
             "",
         ]

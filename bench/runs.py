@@ -18,7 +18,7 @@ from bench.client import BenchError, Client
 from bench.measure import Latency
 from bench.probes import LagFigures, ReadinessProbe, wait_caught_up
 from bench.workloads import CumulativePost
-from segb_server.backend.services.writing.journal import JOURNAL_FILE
+from segb_server.backend.services.writing.journal_file import JOURNAL_FILE
 
 REPORTS_FILE = "reports.sqlite3"  # where the server keeps the reports' rows, beside the journal
 
@@ -140,8 +140,8 @@ def export_size(url: str) -> tuple[int, int]:
 class JournalSize:
     """The journal on disk after a run, against the graph it holds as N-Triples."""
 
-    database_bytes: int  # DATA_DIR/ledger.sqlite3
-    wal_bytes: int  # DATA_DIR/ledger.sqlite3-wal (not yet checkpointed into the database)
+    database_bytes: int  # DATA_DIR/journal.sqlite3
+    wal_bytes: int  # DATA_DIR/journal.sqlite3-wal (not yet checkpointed into the database)
     graph_triples: int
     graph_ntriples_bytes: int
     payload_bytes: int  # everything the robot sent, summed over its posts

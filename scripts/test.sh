@@ -1,11 +1,37 @@
 #!/usr/bin/env bash
-# The README's test command. Installs what the tests need — Debian's Virtuoso, Chromium, PostgreSQL, nginx and,
-# for the container tier, Docker's daemon and debootstrap, when missing; the pinned Python packages from
-# requirements-test.lock (hash-checked); the project itself — then runs pytest (the container tier last).
-# Extra arguments go to pytest, e.g. `./scripts/test.sh -m "not browser and not virtuoso"`, or
-# `./scripts/test.sh -m containers` for the container tier alone.
+# The README's test commands.
+#
+# ./scripts/test.sh [pytest arguments]         the full suite, what CI runs. Installs what the tests need —
+#     Debian's Virtuoso, Chromium, PostgreSQL, nginx and, for the container tier, Docker's daemon and
+#     debootstrap, when missing; the pinned Python packages from requirements-test.lock (hash-checked); the
+#     project itself — then runs pytest (the container tier last). E.g. `./scripts/test.sh -m containers` for the
+#     container tier alone.
+# ./scripts/test.sh --fast [pytest arguments]  the fast tier: every test that needs no Virtuoso, Chromium,
+#     PostgreSQL, Docker or process of its own, served in this process (`pytest --fast`, see tests/conftest.py).
+#     No apt step; the Python packages are installed only when they are missing.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+
+pip=(python3 -m pip install -q --disable-pip-version-check)
+install_python_packages() {
+  "${pip[@]}" --require-hashes -r requirements-test.lock
+  # The build backend (setuptools) comes from the lock too: no build isolation fetching it unpinned.
+  "${pip[@]}" --no-deps --no-build-isolation -e .
+}
+
+if [ "${1:-}" = "--fast" ]; then
+  shift
+  python3 -c "import segb_server.backend, pytest, hypothesis, schemathesis" 2>/dev/null || install_python_packages
+  # The tests' stores, journals and views in memory where /dev/shm is: the fast tier spends a fifth of its time
+  # waiting for the disk's syncs otherwise. Removed when the run ends.
+  if [ -d /dev/shm ] && [ -w /dev/shm ]; then
+    TMPDIR=$(mktemp -d /dev/shm/segb-fast-tests-XXXXXX)
+    export TMPDIR
+    trap 'rm -rf "$TMPDIR"' EXIT
+  fi
+  python3 -m pytest --fast "$@"
+  exit
+fi
 
 missing=()
 command -v virtuoso-t >/dev/null 2>&1 || missing+=(virtuoso-opensource-7-bin)
@@ -31,8 +57,5 @@ if ((${#missing[@]})); then
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
 fi
 
-pip=(python3 -m pip install -q --disable-pip-version-check)
-"${pip[@]}" --require-hashes -r requirements-test.lock
-# The build backend (setuptools) comes from the lock too: no build isolation fetching it unpinned.
-"${pip[@]}" --no-deps --no-build-isolation -e .
+install_python_packages
 exec python3 -m pytest "$@"

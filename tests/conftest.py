@@ -1,8 +1,10 @@
-"""Shared fixtures: settings isolated from the environment, real stores, a real Virtuoso, live servers."""
+"""Shared fixtures: settings isolated from the environment, real stores, a real Virtuoso, the API served in
+process, live servers."""
 
 from __future__ import annotations
 
 import os
+import sys
 import tempfile
 import uuid
 from collections.abc import Iterator
@@ -18,6 +20,7 @@ from segb_server.backend.store.base import Store
 from segb_server.backend.store.oxigraph import OxigraphStore
 from segb_server.backend.store.virtuoso import VirtuosoStore
 from tests.support.browser import CHROMIUM, CHROMIUM_ARGS
+from tests.support.in_process import InProcess
 from tests.support.live_server import LiveServer
 from tests.support.postgres import PostgresProcess
 from tests.support.virtuoso import VirtuosoProcess
@@ -36,14 +39,62 @@ hypothesis_settings.load_profile("segb")
 set_hypothesis_home_dir(tempfile.mkdtemp(prefix="segb-test-hypothesis-"))
 
 
+# The fast tier (`pytest --fast`, `./scripts/test.sh --fast`): every test but those needing a real part or a
+# process of their own, and the few that run for many seconds by design. The full suite runs them all.
+NOT_FAST = frozenset({"virtuoso", "browser", "postgres", "containers", "processes", "slow"})
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption(
+        "--fast",
+        action="store_true",
+        help=f"the fast tier: deselect the tests marked {', '.join(sorted(NOT_FAST))}",
+    )
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    # The container tier runs after everything else: it takes minutes, and the rest reports first.
+    items.sort(key=lambda item: item.get_closest_marker("containers") is not None)  # stable: order kept within
+    if not config.getoption("--fast"):
+        return
+    kept, deselected = [], []
+    for item in items:
+        (deselected if NOT_FAST & {marker.name for marker in item.iter_markers()} else kept).append(item)
+    if deselected:
+        config.hook.pytest_deselected(items=deselected)
+        items[:] = kept
+
+
 def pytest_configure(config: pytest.Config) -> None:
     real_home = redirect_home()
     config.stash[_GUARD] = (real_home, take(ROOT, real_home))
+    sys.addaudithook(_refuse_unmarked_processes)
 
 
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """The container tier runs after everything else: it takes minutes, and the rest reports first."""
-    items.sort(key=lambda item: item.get_closest_marker("containers") is not None)  # stable: order kept within
+# A test that starts a process (the segb command, a store, a browser, a tool) carries a marker saying so, so
+# the fast tier (`scripts/test.sh --fast`), which deselects these markers, runs no process but the server's own
+# query workers (multiprocessing, which Python does not audit as a subprocess).
+PROCESS_MARKERS = frozenset({"processes", "virtuoso", "postgres", "browser", "containers"})
+_RUNNING: list[pytest.Item] = []
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_protocol(item: pytest.Item) -> Iterator[None]:
+    _RUNNING.append(item)
+    try:
+        return (yield)
+    finally:
+        _RUNNING.pop()
+
+
+def _refuse_unmarked_processes(event: str, arguments: tuple[object, ...]) -> None:
+    if event != "subprocess.Popen" or not _RUNNING:
+        return
+    item = _RUNNING[-1]
+    if not PROCESS_MARKERS & {marker.name for marker in item.iter_markers()}:
+        raise RuntimeError(
+            f"{item.nodeid} starts a process ({arguments[0]!r}): mark it with one of {sorted(PROCESS_MARKERS)}"
+        )
 
 
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
@@ -132,15 +183,23 @@ def memory_store() -> Iterator[Store]:
 
 
 @pytest.fixture
-def api(store: Store) -> Iterator[LiveServer]:
-    """The API over real HTTP, on each store."""
-    with LiveServer(create_app(make_settings(), store=store)) as server:
-        yield server
+def api(store: Store) -> Iterator[InProcess]:
+    """The API served in this process (no socket), on each store."""
+    with InProcess(create_app(make_settings(), store=store)) as served:
+        yield served
 
 
 @pytest.fixture
-def memory_api(memory_store: Store) -> Iterator[LiveServer]:
-    """The API over real HTTP on a fresh in-memory store (for tests where the store kind is irrelevant)."""
+def memory_api(memory_store: Store) -> Iterator[InProcess]:
+    """The API served in this process on a fresh in-memory store (for tests where the store kind is irrelevant)."""
+    with InProcess(create_app(make_settings(), store=memory_store)) as served:
+        yield served
+
+
+@pytest.fixture
+def live_api(memory_store: Store) -> Iterator[LiveServer]:
+    """The API over real HTTP on a fresh in-memory store, for clients that need a socket (other HTTP libraries,
+    streams read with a timeout)."""
     with LiveServer(create_app(make_settings(), store=memory_store)) as server:
         yield server
 

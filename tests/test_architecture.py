@@ -64,3 +64,24 @@ def test_everything_imports_the_installed_names_never_the_bare_folders() -> None
         if name.split(".")[0] in bare
     ]
     assert found == []
+
+
+def test_the_api_dependencies_borrow_no_name_of_the_logging_module() -> None:
+    """A route reading `principal: Logger` looks like it takes a `logging.Logger`: the role's alias says what the
+    caller is instead."""
+    import logging
+
+    from segb_server.backend.api import deps
+
+    public = {name for name in vars(deps) if not name.startswith("_")}
+    assert public & set(dir(logging)) == set()
+    assert deps.Publisher is not None  # the logger role: a robot that publishes its logs
+
+
+def test_the_bench_uses_the_tests_helpers_and_the_tests_never_use_the_bench() -> None:
+    """One direction between the two: the bench starts its real parts and makes its data with the tests' own
+    helpers (tests/support: Virtuoso, PostgreSQL, Chromium, the robots' posts), and no test but the bench's own
+    (tests/bench) imports the bench: a test helper lives with the tests, a workload with the bench."""
+    bench_reaches = offenders("bench", ("tests",), ("tests.support",))
+    tests_reach = [line for line in offenders("tests", ("bench",)) if not line.startswith("tests/bench/")]
+    assert bench_reaches == [] and tests_reach == []

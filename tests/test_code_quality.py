@@ -6,6 +6,10 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
+pytestmark = pytest.mark.processes  # runs ruff and mypy
+
 ROOT = Path(__file__).resolve().parents[1]
 
 

@@ -39,3 +39,8 @@ def test_the_test_command_installs_from_the_test_lock_with_hashes() -> None:
     assert "--require-hashes -r requirements-test.lock" in script
     assert "--no-deps --no-build-isolation -e ." in script  # setuptools from the lock too
     assert "./scripts/test.sh" in (ROOT / ".ci" / "run").read_text()
+
+
+def test_the_fast_command_runs_the_fast_tier_before_any_apt_step() -> None:
+    script = (ROOT / "scripts" / "test.sh").read_text()
+    assert script.index("python3 -m pytest --fast") < script.index("apt-get")

@@ -7,6 +7,7 @@ from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from pathlib import Path
 
+import httpx
 from fastapi import FastAPI, Request
 from fastapi.responses import Response
 from fastapi.staticfiles import StaticFiles
@@ -57,12 +58,16 @@ ROUTERS = [
 ]
 
 
-def create_ui_app(settings: Settings | None = None) -> FastAPI:
+def create_ui_app(
+    settings: Settings | None = None, *, backend_transport: httpx.AsyncBaseTransport | None = None
+) -> FastAPI:
+    """The UI app. It reaches the API over HTTP at BACKEND_URL, or through `backend_transport` when given (tests
+    serve the API app to it in the same process)."""
     settings = settings or Settings()
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
-        app.state.backend = BackendClient(settings.effective_backend_url)
+        app.state.backend = BackendClient(settings.effective_backend_url, transport=backend_transport)
         app.state.viewers = ViewerCache()
         app.state.badges = BadgeCache()
         try:

@@ -48,7 +48,8 @@ def require(*roles: str) -> Callable[[Principal], Awaitable[Principal]]:
     return check
 
 
-Logger = Annotated[Principal, Depends(require("logger"))]
+# The logger role is a robot publishing its logs: named `Publisher`, so no route reads as taking a logging.Logger.
+Publisher = Annotated[Principal, Depends(require("logger"))]
 Auditor = Annotated[Principal, Depends(require("auditor"))]
 Admin = Annotated[Principal, Depends(require("admin"))]
 

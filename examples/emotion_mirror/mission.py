@@ -4,7 +4,8 @@ The robot listens to a person, replies (through an LLM or a fixed fallback), and
 expression it detects. Every event is logged and the whole graph is published right after it:
 
 * a detected expression  -> emotion-recognition activity, observation, Big6 emotion annotation on the person;
-* an utterance           -> shared event, listening activity, InitialMessage from the person;
+* an utterance           -> shared event, listening activity, InitialMessage from the person, and the
+                            expression read just before linked to that shared event (`schema:about`);
 * the reply              -> response activity (using the LLM only when the LLM wrote the reply),
                             ResponseMessage, the robot's mirrored emotion, and a robot state snapshot.
 
@@ -80,6 +81,7 @@ class EmotionMirrorMission:
     _turn: int = 0
     _last_expression: str | None = None
     _last_recognition: URIRef | None = None
+    _recognition_without_event: URIRef | None = None  # read since the last utterance: it joins the next one's event
     _last_heard: URIRef | None = None
     models: dict[str, URIRef] = field(default_factory=dict)
 
@@ -146,7 +148,7 @@ class EmotionMirrorMission:
             annotation_id=f"face_emotion_{self._turn}",
         )
         self._last_expression = expression
-        self._last_recognition = recognition
+        self._last_recognition = self._recognition_without_event = recognition
         self._publish()
         return recognition
 
@@ -170,6 +172,11 @@ class EmotionMirrorMission:
             started_at=at,
             ended_at=at + timedelta(milliseconds=800),
         )
+        if self._recognition_without_event is not None:
+            # As the tutorial's robot logs it: the expression read on the face of the person who now speaks is
+            # about this exchange's shared event (which, in turn, is about the person).
+            log.link_activity_to_shared_event(self._recognition_without_event, event)
+            self._recognition_without_event = None
         heard = log.log_message(
             text,
             message_id=f"user_{self._turn}",

@@ -1,4 +1,4 @@
-"""Every API route against every kind of caller, with authentication on, over real HTTP.
+"""Every API route against every kind of caller, with authentication on, through the whole app served in process.
 
 The route list comes from the running app's OpenAPI description, so a new route without an entry in
 `REQUIRED_ROLE` fails here until someone decides who may call it.
@@ -17,7 +17,7 @@ from segb_server.backend.api.app import create_app
 from segb_server.backend.auth import mint_token
 from tests.cli.test_demo import REPORTS
 from tests.conftest import make_settings
-from tests.support.live_server import LiveServer
+from tests.support.in_process import InProcess, publisher_for
 
 SECRET = "a-test-secret-that-is-long-enough-for-hs256"
 PUBLIC = None
@@ -85,28 +85,28 @@ REQUESTS: dict[tuple[str, str], dict[str, object]] = {
 
 
 @pytest.fixture(scope="module")
-def server() -> Iterator[LiveServer]:
-    with LiveServer(create_app(make_settings(secret_key=SECRET))) as live:
-        yield live
+def server() -> Iterator[InProcess]:
+    with InProcess(create_app(make_settings(secret_key=SECRET))) as served:
+        yield served
 
 
 def token(*roles: str, secret: str = SECRET, expires_in: int = 600) -> str:
     return mint_token(secret, username="tester", roles=roles, expires_in=expires_in).token
 
 
-def call(server: LiveServer, route: tuple[str, str], bearer: str | None) -> httpx.Response:
+def call(server: InProcess, route: tuple[str, str], bearer: str | None) -> httpx.Response:
     method, path = route
     spec = dict(REQUESTS.get(route, {}))
-    url = server.url + str(spec.pop("path", path))
+    url = str(spec.pop("path", path))
     headers = dict(spec.pop("headers", {}))  # type: ignore[call-overload]
     if bearer is not None:
         headers["Authorization"] = f"Bearer {bearer}"
     if path.endswith("/stream"):  # an endless event stream: its status and headers are the answer
-        with httpx.stream(method, url, headers=headers, timeout=30) as streamed:
+        with server.client.stream(method, url, headers=headers) as streamed:
             if streamed.status_code >= 400:
                 streamed.read()
             return streamed
-    return httpx.request(method, url, headers=headers, timeout=30, **spec)  # type: ignore[arg-type]
+    return server.client.request(method, url, headers=headers, **spec)  # type: ignore[arg-type]
 
 
 def served(answer: httpx.Response) -> bool:
@@ -120,8 +120,8 @@ def served(answer: httpx.Response) -> bool:
     )
 
 
-def test_every_route_has_a_decided_role(server: LiveServer) -> None:
-    paths = httpx.get(f"{server.url}/openapi.json").json()["paths"]
+def test_every_route_has_a_decided_role(server: InProcess) -> None:
+    paths = server.get("/openapi.json").json()["paths"]
     routes = {(method.upper(), path) for path, operations in paths.items() for method in operations}
     assert routes == set(REQUIRED_ROLE)
 
@@ -139,7 +139,7 @@ BAD_TOKENS = {
 
 @pytest.mark.parametrize("route", sorted(REQUIRED_ROLE), ids=lambda r: f"{r[0]} {r[1]}")
 @pytest.mark.parametrize("kind", sorted(BAD_TOKENS))
-def test_protected_routes_refuse_callers_without_a_valid_token(server: LiveServer, route, kind: str) -> None:  # type: ignore[no-untyped-def]
+def test_protected_routes_refuse_callers_without_a_valid_token(server: InProcess, route, kind: str) -> None:  # type: ignore[no-untyped-def]
     make = BAD_TOKENS[kind]
     answer = call(server, route, make() if make else None)
     if REQUIRED_ROLE[route] is PUBLIC:
@@ -152,7 +152,7 @@ def test_protected_routes_refuse_callers_without_a_valid_token(server: LiveServe
 
 @pytest.mark.parametrize("route", sorted(REQUIRED_ROLE), ids=lambda r: f"{r[0]} {r[1]}")
 @pytest.mark.parametrize("role", ["logger", "auditor", "admin"])
-def test_each_role_gets_exactly_its_routes(server: LiveServer, route, role: str) -> None:  # type: ignore[no-untyped-def]
+def test_each_role_gets_exactly_its_routes(server: InProcess, route, role: str) -> None:  # type: ignore[no-untyped-def]
     needed = REQUIRED_ROLE[route]
     allowed = needed in (PUBLIC, ANY_TOKEN) or role in (needed, "admin")
     answer = call(server, route, token(role))
@@ -163,23 +163,21 @@ def test_each_role_gets_exactly_its_routes(server: LiveServer, route, role: str)
         assert answer.json()["detail"] == "User does not have permission to perform this action"  # the reference's
 
 
-def test_with_auth_off_every_route_is_open(memory_api: LiveServer) -> None:
+def test_with_auth_off_every_route_is_open(memory_api: InProcess) -> None:
     for route in REQUIRED_ROLE:
         assert served(call(memory_api, route, None)), route
 
 
-def test_the_pypi_client_publishes_with_a_logger_token_and_is_refused_without(server: LiveServer) -> None:
-    from semantic_log_generator import SEGBPublisher
-
+def test_the_pypi_client_publishes_with_a_logger_token_and_is_refused_without(server: InProcess) -> None:
     from tests.support.scenarios import lobby
 
     scenario = lobby()
     scenario.run_steps()
     ari = scenario.loggers["ari"]
     with pytest.raises(RuntimeError, match="HTTP 401"):
-        ari.publish(SEGBPublisher(base_url=server.url))
+        ari.publish(publisher_for(server.client))
     with pytest.raises(RuntimeError, match="HTTP 403"):
-        ari.publish(SEGBPublisher(base_url=server.url, token=token("auditor")))
-    answer = ari.publish(SEGBPublisher(base_url=server.url, token=token("logger"), default_user="admin"))
+        ari.publish(publisher_for(server.client, token=token("auditor")))
+    answer = ari.publish(publisher_for(server.client, "admin", token("logger")))
     assert answer["user"] == "tester" and answer["claimed_user"] == "admin"  # a claim cannot impersonate
     assert answer["triples_received"] == len(ari.graph)

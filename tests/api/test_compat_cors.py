@@ -1,5 +1,6 @@
-"""CORS over real HTTP: every answer to an allowed origin carries the CORS headers, errors included (4xx, a 503
-with the store down, a 502 from a store that answers nonsense), preflights, and the credentials setting.
+"""CORS, through the whole app served in process: every answer to an allowed origin carries the CORS headers,
+errors included (4xx, a 503 with the store down, a 502 from a store that answers nonsense), preflights, and the
+credentials setting.
 
 A browser hides from scripts every answer without `Access-Control-Allow-Origin`, errors too, so a web UI on
 another origin would see a network failure instead of the error's JSON. The reference answered its 500s
@@ -18,6 +19,7 @@ from segb_server.backend.store.base import Store
 from segb_server.backend.store.sparql_http import SparqlHttpStore
 from tests.api.test_compat_validate import unreachable_store
 from tests.conftest import make_settings
+from tests.support.in_process import InProcess
 from tests.support.live_server import LiveServer
 
 SECRET = "a-test-secret-that-is-long-enough-for-hs256"
@@ -32,13 +34,13 @@ def bearer(*roles: str) -> dict[str, str]:
 
 def cors_app(store: Store, **settings: object) -> LiveServer:
     values: dict[str, object] = {"cors_origins": f"{ORIGIN}, https://ui.example", "secret_key": SECRET, **settings}
-    return LiveServer(create_app(make_settings(**values), store=store))
+    return InProcess(create_app(make_settings(**values), store=store))
 
 
 @pytest.fixture
-def server(memory_store: Store) -> Iterator[LiveServer]:
+def server(memory_store: Store) -> Iterator[InProcess]:
     with cors_app(memory_store, max_body_bytes=2048, sparql_max_rows=1) as live:
-        httpx.post(f"{live.url}/ttl", content=TURTLE, headers={"Content-Type": "text/turtle", **bearer("logger")})
+        live.post("/ttl", content=TURTLE, headers={"Content-Type": "text/turtle", **bearer("logger")})
         yield live
 
 
@@ -82,19 +84,19 @@ ANSWERS: dict[str, tuple[str, str, dict[str, object], int]] = {
 
 
 @pytest.mark.parametrize("name", sorted(ANSWERS))
-def test_every_answer_to_an_allowed_origin_carries_cors_errors_included(server: LiveServer, name: str) -> None:
+def test_every_answer_to_an_allowed_origin_carries_cors_errors_included(server: InProcess, name: str) -> None:
     method, path, request, status = ANSWERS[name]
     headers = {"Origin": ORIGIN, **request.get("headers", {})}
-    answer = httpx.request(method, server.url + path, timeout=30, **{**request, "headers": headers})
+    answer = server.client.request(method, path, **{**request, "headers": headers})
     assert answer.status_code == status, answer.text
     assert_cors(answer)
     if status >= 400:
         assert answer.json()["status"] == status  # the error's JSON, readable by the page's script
 
 
-def test_a_truncated_answer_exposes_its_flag_to_scripts(server: LiveServer) -> None:
-    answer = httpx.get(
-        f"{server.url}/sparql",
+def test_a_truncated_answer_exposes_its_flag_to_scripts(server: InProcess) -> None:
+    answer = server.get(
+        "/sparql",
         params={"query": "SELECT * { ?s ?p ?o }"},
         headers={"Origin": ORIGIN, **bearer("auditor")},
     )
@@ -106,15 +108,15 @@ def test_a_truncated_answer_exposes_its_flag_to_scripts(server: LiveServer) -> N
     assert_cors(answer)
 
 
-def test_another_origin_gets_no_cors_headers_even_on_errors(server: LiveServer) -> None:
+def test_another_origin_gets_no_cors_headers_even_on_errors(server: InProcess) -> None:
     for path in ("/healthz/live", "/events", "/reports/nope"):
-        answer = httpx.get(server.url + path, headers={"Origin": OTHER_ORIGIN})
+        answer = server.get(path, headers={"Origin": OTHER_ORIGIN})
         assert "access-control-allow-origin" not in answer.headers, path
-    assert "access-control-allow-origin" not in httpx.get(f"{server.url}/healthz/live").headers  # no Origin
+    assert "access-control-allow-origin" not in server.get("/healthz/live").headers  # no Origin
 
 
-def test_a_second_listed_origin_is_allowed_too(server: LiveServer) -> None:
-    assert_cors(httpx.get(f"{server.url}/healthz/live", headers={"Origin": "https://ui.example"}), "https://ui.example")
+def test_a_second_listed_origin_is_allowed_too(server: InProcess) -> None:
+    assert_cors(server.get("/healthz/live", headers={"Origin": "https://ui.example"}), "https://ui.example")
 
 
 def test_server_errors_carry_cors_with_the_store_down() -> None:
@@ -122,12 +124,10 @@ def test_server_errors_carry_cors_with_the_store_down() -> None:
     try:
         with cors_app(store) as server:
             origin = {"Origin": ORIGIN}
-            ready = httpx.get(f"{server.url}/healthz/ready", headers=origin)
-            query = httpx.get(
-                f"{server.url}/sparql", params={"query": "ASK {}"}, headers={**origin, **bearer("auditor")}
-            )
-            publish = httpx.post(
-                f"{server.url}/ttl",
+            ready = server.get("/healthz/ready", headers=origin)
+            query = server.get("/sparql", params={"query": "ASK {}"}, headers={**origin, **bearer("auditor")})
+            publish = server.post(
+                "/ttl",
                 content=TURTLE,
                 headers={**origin, "Content-Type": "text/turtle", **bearer("logger")},
             )
@@ -139,17 +139,16 @@ def test_server_errors_carry_cors_with_the_store_down() -> None:
     assert (query.json()["error"], publish.json()["error"]) == ("store_unavailable", "store_unavailable")
 
 
-def test_server_errors_carry_cors_when_the_store_answers_nonsense(memory_api: LiveServer) -> None:
+def test_server_errors_carry_cors_when_the_store_answers_nonsense(live_api: LiveServer) -> None:
     # An HTTP server that is no SPARQL endpoint: it answers queries with a 405, which the API reports as a 502.
-    endpoint = f"{memory_api.url}/healthz/live"
+    endpoint = f"{live_api.url}/healthz/live"
     store = SparqlHttpStore(query_endpoint=endpoint, update_endpoint=endpoint, graph_uri="http://amor-segb/events")
     try:
         with cors_app(store) as server:
-            answer = httpx.get(
-                f"{server.url}/resource",
+            answer = server.get(
+                "/resource",
                 params={"iri": "https://example.org/a"},
                 headers={"Origin": ORIGIN, **bearer("auditor")},
-                timeout=30,
             )
     finally:
         store.close()
@@ -164,8 +163,8 @@ PREFLIGHT = {
 }
 
 
-def test_a_preflight_allows_what_the_api_uses_and_needs_no_token(server: LiveServer) -> None:
-    answer = httpx.options(f"{server.url}/ttl", headers=PREFLIGHT)
+def test_a_preflight_allows_what_the_api_uses_and_needs_no_token(server: InProcess) -> None:
+    answer = server.client.options("/ttl", headers=PREFLIGHT)
     assert answer.status_code == 200, answer.text
     assert answer.headers["access-control-allow-origin"] == ORIGIN
     methods = {method.strip() for method in answer.headers["access-control-allow-methods"].split(",")}
@@ -180,8 +179,8 @@ def test_a_preflight_allows_what_the_api_uses_and_needs_no_token(server: LiveSer
     [{"Origin": OTHER_ORIGIN}, {"Access-Control-Request-Method": "PUT"}, {"Access-Control-Request-Headers": "x-other"}],
     ids=["other origin", "other method", "other header"],
 )
-def test_a_preflight_refuses_what_is_not_allowed(server: LiveServer, change: dict[str, str]) -> None:
-    answer = httpx.options(f"{server.url}/ttl", headers={**PREFLIGHT, **change})
+def test_a_preflight_refuses_what_is_not_allowed(server: InProcess, change: dict[str, str]) -> None:
+    answer = server.client.options("/ttl", headers={**PREFLIGHT, **change})
     assert answer.status_code == 400
     if "Origin" in change:
         assert "access-control-allow-origin" not in answer.headers
@@ -189,8 +188,8 @@ def test_a_preflight_refuses_what_is_not_allowed(server: LiveServer, change: dic
 
 def test_credentials_are_allowed_only_when_configured(memory_store: Store) -> None:
     with cors_app(memory_store, cors_allow_credentials=True) as server:
-        preflight = httpx.options(f"{server.url}/events", headers={**PREFLIGHT, "Access-Control-Request-Method": "GET"})
-        refused = httpx.get(f"{server.url}/events", headers={"Origin": ORIGIN})
+        preflight = server.client.options("/events", headers={**PREFLIGHT, "Access-Control-Request-Method": "GET"})
+        refused = server.get("/events", headers={"Origin": ORIGIN})
     for answer in (preflight, refused):
         assert answer.headers["access-control-allow-credentials"] == "true"
         assert answer.headers["access-control-allow-origin"] == ORIGIN  # never "*" with credentials

@@ -1,6 +1,6 @@
-"""Every endpoint of the reference backend, driven over real HTTP with the requests its web UI, its PyPI client
-and its simulation scripts send, on the embedded store and on a real Virtuoso: the statuses and JSON keys they
-read, and the reference's 422 for client errors on its own endpoints."""
+"""Every endpoint of the reference backend, driven through the whole app in process with the requests its web UI, its
+PyPI client and its simulation scripts send, on the embedded store and on a real Virtuoso: the statuses and JSON keys
+they read, and the reference's 422 for client errors on its own endpoints."""
 
 from __future__ import annotations
 
@@ -10,12 +10,11 @@ from typing import Any
 import httpx
 import pytest
 from rdflib import Graph, Namespace
-from semantic_log_generator.publisher import SEGBPublisher
 
 from segb_server.backend.api.app import create_app
 from tests.api.test_compat_validate import unreachable_store
 from tests.conftest import FIXTURES, make_settings
-from tests.support.live_server import LiveServer
+from tests.support.in_process import InProcess, publisher_for
 
 # What the reference web UI's HTTP client sends with every call.
 UI_ACCEPT = {"Accept": "application/json, text/plain, text/turtle"}
@@ -79,9 +78,9 @@ DECISION_KEYS = {
 }
 
 
-def call(server: LiveServer, method: str, path: str, **kwargs: Any) -> httpx.Response:
+def call(server: InProcess, method: str, path: str, **kwargs: Any) -> httpx.Response:
     kwargs["headers"] = {**UI_ACCEPT, **kwargs.get("headers", {})}
-    return httpx.request(method, server.url + path, timeout=60, **kwargs)
+    return server.client.request(method, path, **kwargs)
 
 
 def json_of(answer: httpx.Response, status: int = 200) -> Any:
@@ -111,7 +110,7 @@ def utterance(seconds: float, subject: str | None = MARIA) -> dict[str, Any]:
     }
 
 
-def test_health_auth_mode_and_docs(api: LiveServer) -> None:
+def test_health_auth_mode_and_docs(api: InProcess) -> None:
     assert json_of(call(api, "GET", "/healthz/live")) == {"live": True}
     ready = json_of(call(api, "GET", "/healthz/ready"))
     assert ready["ready"] is True and len(ready) == 2  # {"ready": true, "virtuoso": true} on Virtuoso
@@ -120,12 +119,12 @@ def test_health_auth_mode_and_docs(api: LiveServer) -> None:
         assert call(api, "GET", path).status_code == 200, path
 
 
-def test_the_insert_page_the_kg_page_and_the_delete_page(api: LiveServer) -> None:
+def test_the_insert_page_the_kg_page_and_the_delete_page(api: InProcess) -> None:
     turtle = (FIXTURES / "reference_uc01.ttl").read_text()
     # The insert page validates first, then inserts; the client library posts the same body with a user.
     validation = json_of(call(api, "POST", "/ttl/validate", json={"ttl_content": turtle}))
     assert set(validation) >= VALIDATION_KEYS and validation["valid"] is True
-    inserted = SEGBPublisher(base_url=api.url, default_user="ari").publish_turtle(turtle)
+    inserted = publisher_for(api.client, "ari").publish_turtle(turtle)
     assert {"message", "log_id"} <= set(inserted) and inserted["log_id"]
     ui_insert = call(api, "POST", "/ttl", json={"ttl_content": turtle})
     assert ui_insert.status_code == 201 and json_of(ui_insert, 201)["log_id"]
@@ -136,12 +135,12 @@ def test_the_insert_page_the_kg_page_and_the_delete_page(api: LiveServer) -> Non
 
     # The delete page posts {}; the client library posts {"user": …}.
     assert json_of(call(api, "POST", "/ttl/delete_all", json={}))["message"] == "Graph cleared."
-    assert SEGBPublisher(base_url=api.url).delete_all_ttls(user="admin")["message"] == "No TTLs to delete"
+    assert publisher_for(api.client).delete_all_ttls(user="admin")["message"] == "No TTLs to delete"
     assert len(Graph().parse(data=call(api, "GET", "/events").text, format="turtle")) == 0
 
 
-def test_the_query_workbench(api: LiveServer) -> None:
-    SEGBPublisher(base_url=api.url).publish_turtle((FIXTURES / "reference_uc01.ttl").read_text())
+def test_the_query_workbench(api: InProcess) -> None:
+    publisher_for(api.client).publish_turtle((FIXTURES / "reference_uc01.ttl").read_text())
     query = "SELECT ?s ?p ?o WHERE { ?s ?p ?o } LIMIT 20"  # the workbench's prefilled query
     checked = json_of(call(api, "POST", "/query/validate", json={"query": query}))
     assert set(checked) >= QUERY_VALIDATION_KEYS
@@ -155,7 +154,7 @@ def test_the_query_workbench(api: LiveServer) -> None:
     assert (update["valid"], update["query_kind"]) == (False, "update")
 
 
-def test_the_reference_client_errors_of_the_query_endpoints_are_422(memory_api: LiveServer) -> None:
+def test_the_reference_client_errors_of_the_query_endpoints_are_422(memory_api: InProcess) -> None:
     refused_422(call(memory_api, "GET", "/query"))
     for query in ("CLEAR ALL", "SELECT ?s WHERE {", "HELLO"):
         body = refused_422(call(memory_api, "GET", "/query", params={"query": query}))
@@ -166,7 +165,7 @@ def test_the_reference_client_errors_of_the_query_endpoints_are_422(memory_api: 
     assert call(memory_api, "GET", "/sparql", params={"query": "CLEAR ALL"}).status_code == 400
 
 
-def test_the_system_logs_page(memory_api: LiveServer) -> None:
+def test_the_system_logs_page(memory_api: InProcess) -> None:
     call(memory_api, "GET", "/healthz/live", headers={"X-Request-ID": "logs-page-1"})
     body = json_of(
         call(memory_api, "GET", "/logs/server", params={"limit": 200, "level": "INFO", "contains": "logs-page"})
@@ -181,7 +180,7 @@ def test_the_system_logs_page(memory_api: LiveServer) -> None:
         refused_422(call(memory_api, "GET", "/logs/server", params=params))
 
 
-def test_the_shared_context_console_and_the_simulation_scripts(memory_api: LiveServer) -> None:
+def test_the_shared_context_console_and_the_simulation_scripts(memory_api: InProcess) -> None:
     first = json_of(call(memory_api, "POST", "/shared-context/resolve", json=utterance(0)))
     assert set(first) >= RESOLVE_KEYS and first["status"] == "created"
     assert json_of(call(memory_api, "POST", "/shared-context/resolve", json=utterance(0.8)))["status"] == "matched"
@@ -206,7 +205,7 @@ def test_the_shared_context_console_and_the_simulation_scripts(memory_api: LiveS
     assert (accepted["status"], accepted["resulting_context_uri"]) == ("accepted", target)
 
 
-def test_the_reference_client_errors_of_the_review_endpoints_are_422(memory_api: LiveServer) -> None:
+def test_the_reference_client_errors_of_the_review_endpoints_are_422(memory_api: InProcess) -> None:
     json_of(call(memory_api, "POST", "/shared-context/resolve", json=utterance(0)))
     source = json_of(call(memory_api, "POST", "/shared-context/resolve", json=utterance(0.5, subject=None)))
     [case] = json_of(call(memory_api, "GET", "/shared-context/review/pending"))["pending_cases"]
@@ -241,7 +240,7 @@ def test_the_store_routes_answer_503_when_the_store_is_down(path: str) -> None:
     method = "POST" if path.startswith("/ttl") else "GET"
     body = {"ttl_content": "<https://example.org/a> a <https://example.org/B> ."} if path == "/ttl" else {}
     try:
-        with LiveServer(create_app(make_settings(), store=store)) as server:
+        with InProcess(create_app(make_settings(), store=store)) as server:
             answer = call(server, method, path, json=body) if method == "POST" else call(server, method, path)
     finally:
         store.close()

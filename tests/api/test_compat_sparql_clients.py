@@ -31,6 +31,7 @@ from SPARQLWrapper import (
 )
 
 from segb_server.backend.api.app import create_app
+from segb_server.backend.store.base import Store
 from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.conftest import make_settings
 from tests.support.live_server import LiveServer
@@ -153,6 +154,13 @@ def test_sparqlwrapper_ask_and_describe(published: Published) -> None:
         media_type, described = run(published.endpoint, f"DESCRIBE <{published.rows[0][0]}>", method, None)
         assert media_type == "application/rdf+xml" and isinstance(described, Graph)
         assert (URIRef(published.rows[0][0]), URIRef(FOAF + "firstName"), Literal("Juan", lang="en")) in described
+
+
+@pytest.fixture
+def api(store: Store) -> Iterator[LiveServer]:
+    """The API over real HTTP, on each store: SPARQLWrapper and the other clients bring their own HTTP."""
+    with LiveServer(create_app(make_settings(), store=store)) as server:
+        yield server
 
 
 def test_sparqlwrapper_defaults_on_each_store(api: LiveServer) -> None:

@@ -1,5 +1,5 @@
-"""POST /ttl/validate over real HTTP, with the reference backend's request and report: what the ingest would
-refuse (found by the ingest's own parser, so the two always agree), the reference's rules on the robots'
+"""POST /ttl/validate through the whole app in process, with the reference backend's request and report: what the ingest
+would refuse (found by the ingest's own parser, so the two always agree), the reference's rules on the robots'
 vocabulary, the ingest's body limits, and nothing ever written."""
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from segb_server.backend.services.ingest.validation import MAX_ISSUES
 from segb_server.backend.store.base import Store
 from segb_server.backend.store.sparql_http import SparqlHttpStore
 from tests.conftest import FIXTURES, make_settings
-from tests.support.live_server import LiveServer
+from tests.support.in_process import InProcess, Server, http
 from tests.support.net import free_port
 
 REPORT_KEYS = {"valid", "syntax_ok", "semantic_ok", "triple_count", "issues"}
@@ -31,23 +31,23 @@ PREFIXES = (
 GOOD = PREFIXES + "ex:ari a prov:Agent ;\n    prov:wasAssociatedWith ex:maria .\nex:maria a prov:Agent .\n"
 
 
-def validate(url: str, ttl: str | None = None, **kwargs: object) -> httpx.Response:
+def validate(server: Server, ttl: str | None = None, **kwargs: object) -> httpx.Response:
     if ttl is not None:
         kwargs["json"] = {"ttl_content": ttl}  # the reference UI's request
-    return httpx.post(f"{url}/ttl/validate", timeout=60, **kwargs)
+    return http(server, "POST", "/ttl/validate", **kwargs)
 
 
-def report(url: str, ttl: str) -> dict[str, object]:
-    answer = validate(url, ttl)
+def report(server: Server, ttl: str) -> dict[str, object]:
+    answer = validate(server, ttl)
     assert answer.status_code == 200, answer.text
     return answer.json()
 
 
 def test_a_robots_document_validates_in_the_reference_shape_and_nothing_is_written(
-    api: LiveServer, store: Store
+    api: InProcess, store: Store
 ) -> None:
     turtle = (FIXTURES / "reference_uc01.ttl").read_text()
-    body = report(api.url, turtle)
+    body = report(api.client, turtle)
     assert set(body) >= REPORT_KEYS
     assert (body["valid"], body["syntax_ok"], body["semantic_ok"], body["ingest_ok"]) == (True, True, True, True)
     assert body["triple_count"] == len(list(parse(turtle.encode(), RdfFormat.TURTLE))) == 268
@@ -56,10 +56,10 @@ def test_a_robots_document_validates_in_the_reference_shape_and_nothing_is_writt
 
 
 @pytest.fixture
-def limited(memory_store: Store) -> Iterator[LiveServer]:
+def limited(memory_store: Store) -> Iterator[InProcess]:
     """Small limits, so every refusal of the ingest is cheap to reach."""
     settings = make_settings(max_body_bytes=4096, max_decompressed_bytes=8192, max_triples_per_post=5)
-    with LiveServer(create_app(settings, store=memory_store)) as server:
+    with InProcess(create_app(settings, store=memory_store)) as server:
         yield server
 
 
@@ -91,10 +91,10 @@ REFUSED = {
 
 @pytest.mark.parametrize("name", sorted(REFUSED))
 def test_what_the_ingest_refuses_is_found_with_its_position_and_the_ingest_agrees(
-    limited: LiveServer, name: str
+    limited: InProcess, name: str
 ) -> None:
     turtle, code, line, column, syntax_ok, ingest_status = REFUSED[name]
-    body = report(limited.url, turtle)
+    body = report(limited.client, turtle)
     assert (body["valid"], body["semantic_ok"], body["ingest_ok"], body["syntax_ok"]) == (
         False,
         False,
@@ -106,7 +106,7 @@ def test_what_the_ingest_refuses_is_found_with_its_position_and_the_ingest_agree
     assert set(issue) >= ISSUE_KEYS
     assert (issue["severity"], issue["code"], issue["line"], issue["column"]) == ("error", code, line, column)
 
-    posted = httpx.post(f"{limited.url}/ttl", json={"ttl_content": turtle}, timeout=30)
+    posted = limited.post("/ttl", json={"ttl_content": turtle})
     assert posted.status_code == ingest_status, posted.text
     if line is not None:  # the same position as the ingest's own refusal
         assert (posted.json()["line"], posted.json()["column"]) == (line, column)
@@ -114,14 +114,14 @@ def test_what_the_ingest_refuses_is_found_with_its_position_and_the_ingest_agree
         assert "relative IRIs are not accepted" in issue["message"]
 
 
-def test_what_the_ingest_takes_is_ingest_ok_even_where_the_reference_rules_object(limited: LiveServer) -> None:
-    prefixes_only = report(limited.url, PREFIXES)
+def test_what_the_ingest_takes_is_ingest_ok_even_where_the_reference_rules_object(limited: InProcess) -> None:
+    prefixes_only = report(limited.client, PREFIXES)
     assert (prefixes_only["valid"], prefixes_only["ingest_ok"]) == (False, True)  # the reference: an empty graph
     assert [issue["code"] for issue in prefixes_only["issues"]] == ["SEM_EMPTY_GRAPH"]
-    good = report(limited.url, GOOD)
+    good = report(limited.client, GOOD)
     assert (good["valid"], good["ingest_ok"], good["triple_count"], good["issues"]) == (True, True, 3, [])
     for turtle in (PREFIXES, GOOD):
-        assert httpx.post(f"{limited.url}/ttl", json={"ttl_content": turtle}).status_code == 201
+        assert limited.post("/ttl", json={"ttl_content": turtle}).status_code == 201
 
 
 BROKEN_RULES = PREFIXES + (
@@ -135,8 +135,8 @@ BROKEN_RULES = PREFIXES + (
 )
 
 
-def test_the_reference_rules_on_the_robots_vocabulary(memory_api: LiveServer) -> None:
-    body = report(memory_api.url, BROKEN_RULES)
+def test_the_reference_rules_on_the_robots_vocabulary(memory_api: InProcess) -> None:
+    body = report(memory_api.client, BROKEN_RULES)
     assert (body["valid"], body["semantic_ok"], body["syntax_ok"], body["ingest_ok"]) == (False, False, True, True)
     assert body["triple_count"] == 10
     ex, prov, onyx = "https://example.org/", "http://www.w3.org/ns/prov#", "http://www.gsi.upm.es/ontologies/onyx/ns#"
@@ -157,9 +157,9 @@ def test_the_reference_rules_on_the_robots_vocabulary(memory_api: LiveServer) ->
     assert (body["error_count"], body["warning_count"], body["issues_truncated"]) == (9, 1, False)
 
 
-def test_warnings_alone_keep_a_document_valid(memory_api: LiveServer) -> None:
+def test_warnings_alone_keep_a_document_valid(memory_api: InProcess) -> None:
     body = report(
-        memory_api.url,
+        memory_api.client,
         PREFIXES
         + 'ex:e onyx:hasEmotionIntensity 0.25 ; prov:startedAtTime "2026-03-10T09:00:00.5+01:00"^^xsd:dateTime .',
     )
@@ -167,8 +167,8 @@ def test_warnings_alone_keep_a_document_valid(memory_api: LiveServer) -> None:
     assert [(issue["severity"], issue["code"]) for issue in body["issues"]] == [("warning", "SEM_SUBJECT_WITHOUT_TYPE")]
 
 
-def test_blank_nodes_are_named_as_in_the_document(memory_api: LiveServer) -> None:
-    body = report(memory_api.url, PREFIXES + '[] a prov:Activity ; prov:used "a literal" .')
+def test_blank_nodes_are_named_as_in_the_document(memory_api: InProcess) -> None:
+    body = report(memory_api.client, PREFIXES + '[] a prov:Activity ; prov:used "a literal" .')
     [issue] = body["issues"]
     assert issue["code"] == "SEM_OBJECT_PROPERTY_LITERAL" and issue["focus_node"].startswith("_:")
 
@@ -177,12 +177,12 @@ def test_a_token_with_write_scopes_gets_the_verdict_the_ingest_gives_it(memory_s
     secret = "a-test-secret-that-is-long-enough-for-hs256"
     token = mint_token(secret, username="ari-admin", roles=["admin"], scopes=["https://example.org/ari"]).token
     headers = {"Authorization": f"Bearer {token}"}
-    with LiveServer(create_app(make_settings(secret_key=secret), store=memory_store)) as server:
-        inside = validate(server.url, PREFIXES + "ex:ari a prov:Agent .", headers=headers)
-        outside = validate(server.url, GOOD, headers=headers)
-        posted = httpx.post(f"{server.url}/ttl", json={"ttl_content": GOOD}, headers=headers)
+    with InProcess(create_app(make_settings(secret_key=secret), store=memory_store)) as server:
+        inside = validate(server.client, PREFIXES + "ex:ari a prov:Agent .", headers=headers)
+        outside = validate(server.client, GOOD, headers=headers)
+        posted = server.post("/ttl", json={"ttl_content": GOOD}, headers=headers)
         logger_token = mint_token(secret, username="ari", roles=["logger"]).token
-        refused = validate(server.url, GOOD, headers={"Authorization": f"Bearer {logger_token}"})
+        refused = validate(server.client, GOOD, headers={"Authorization": f"Bearer {logger_token}"})
     assert (inside.json()["valid"], inside.json()["ingest_ok"]) == (True, True)
     assert (outside.json()["ingest_ok"], [issue["code"] for issue in outside.json()["issues"]]) == (
         False,
@@ -193,11 +193,11 @@ def test_a_token_with_write_scopes_gets_the_verdict_the_ingest_gives_it(memory_s
     assert refused.status_code == 403  # the reference's role: admin
 
 
-def test_the_issue_list_is_bounded_but_the_counts_are_exact(memory_api: LiveServer) -> None:
+def test_the_issue_list_is_bounded_but_the_counts_are_exact(memory_api: InProcess) -> None:
     turtle = PREFIXES + "".join(
         f"ex:e{i} a ex:Emotion ; onyx:hasEmotionIntensity 7 .\n" for i in range(MAX_ISSUES + 200)
     )
-    body = report(memory_api.url, turtle)
+    body = report(memory_api.client, turtle)
     assert len(body["issues"]) == MAX_ISSUES
     assert (body["error_count"], body["issues_truncated"], body["valid"]) == (MAX_ISSUES + 200, True, False)
 
@@ -220,23 +220,23 @@ REQUESTS_THE_INGEST_REFUSES = {
 
 
 @pytest.mark.parametrize("name", sorted(REQUESTS_THE_INGEST_REFUSES))
-def test_requests_the_ingest_refuses_get_the_same_status(limited: LiveServer, name: str) -> None:
+def test_requests_the_ingest_refuses_get_the_same_status(limited: InProcess, name: str) -> None:
     request, status, named = REQUESTS_THE_INGEST_REFUSES[name]
-    checked = validate(limited.url, **request)
-    posted = httpx.post(f"{limited.url}/ttl", timeout=30, **request)
+    checked = validate(limited.client, **request)
+    posted = limited.post("/ttl", **request)
     assert (checked.status_code, posted.status_code) == (status, status), checked.text
     assert named in checked.json()["detail"] and checked.json()["status"] == status
 
 
-def test_raw_and_gzipped_bodies_are_read_as_the_ingest_reads_them(memory_api: LiveServer) -> None:
-    raw = validate(memory_api.url, content=GOOD.encode(), headers={"Content-Type": "text/turtle"})
+def test_raw_and_gzipped_bodies_are_read_as_the_ingest_reads_them(memory_api: InProcess) -> None:
+    raw = validate(memory_api.client, content=GOOD.encode(), headers={"Content-Type": "text/turtle"})
     zipped = validate(
-        memory_api.url,
+        memory_api.client,
         content=gzip.compress(GOOD.encode()),
         headers={"Content-Type": "text/turtle", "Content-Encoding": "gzip"},
     )
     ntriples = validate(
-        memory_api.url,
+        memory_api.client,
         content=b"<https://example.org/a> <https://example.org/b> <https://example.org/c> .\n",
         headers={"Content-Type": "application/n-triples"},
     )
@@ -253,9 +253,9 @@ def unreachable_store() -> SparqlHttpStore:
 
 def test_validation_needs_no_store() -> None:
     store = unreachable_store()
-    with LiveServer(create_app(make_settings(store="sparql"), store=store)) as server:
-        checked = validate(server.url, GOOD)
-        posted = httpx.post(f"{server.url}/ttl", json={"ttl_content": GOOD}, timeout=30)
+    with InProcess(create_app(make_settings(store="sparql"), store=store)) as server:
+        checked = validate(server.client, GOOD)
+        posted = server.post("/ttl", json={"ttl_content": GOOD})
     store.close()
     assert (checked.status_code, checked.json()["valid"]) == (200, True)
     assert posted.status_code == 503

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import httpx
 import pytest
 
+from tests.support.in_process import InProcess
 from tests.support.live_server import LiveServer
 
 pytestmark = pytest.mark.browser
@@ -26,9 +26,9 @@ def block_the_internet(page) -> list[str]:  # type: ignore[no-untyped-def]
     return tried
 
 
-def test_swagger_ui_lists_the_operations_with_the_internet_blocked(memory_api: LiveServer, page) -> None:  # type: ignore[no-untyped-def]
+def test_swagger_ui_lists_the_operations_with_the_internet_blocked(live_api: LiveServer, page) -> None:  # type: ignore[no-untyped-def]
     tried = block_the_internet(page)
-    page.goto(f"{memory_api.url}/docs")
+    page.goto(f"{live_api.url}/docs")
     page.wait_for_selector(".opblock-summary-path", timeout=20_000)
     paths = page.locator(".opblock-summary-path").all_inner_texts()
     assert "/ttl" in paths and "/reports/participants" in paths and "/healthz/ready" in paths
@@ -36,16 +36,16 @@ def test_swagger_ui_lists_the_operations_with_the_internet_blocked(memory_api: L
     assert page.console_errors == []
 
 
-def test_redoc_renders_the_reference_with_the_internet_blocked(memory_api: LiveServer, page) -> None:  # type: ignore[no-untyped-def]
+def test_redoc_renders_the_reference_with_the_internet_blocked(live_api: LiveServer, page) -> None:  # type: ignore[no-untyped-def]
     tried = block_the_internet(page)
-    page.goto(f"{memory_api.url}/redoc")
+    page.goto(f"{live_api.url}/redoc")
     page.wait_for_selector("h2:has-text('Publish RDF')", timeout=20_000)
     assert tried == []
 
 
-def test_documentation_pages_forbid_inline_and_foreign_scripts(memory_api: LiveServer) -> None:
+def test_documentation_pages_forbid_inline_and_foreign_scripts(memory_api: InProcess) -> None:
     for path in ("/docs", "/redoc"):
-        answer = httpx.get(f"{memory_api.url}{path}")
+        answer = memory_api.get(path)
         assert answer.status_code == 200
         policy = answer.headers["content-security-policy"]
         assert "script-src 'self';" in policy and "default-src 'none'" in policy

@@ -14,12 +14,13 @@ import httpx
 import pytest
 from rdflib import Literal
 from rdflib.namespace import PROV, XSD
-from semantic_log_generator import ActivityKind, SEGBPublisher
+from semantic_log_generator import ActivityKind
 
 from segb_server.backend.api.app import create_app
 from segb_server.backend.config import PACKAGE_ROOT
 from segb_server.examples.emotion_mirror.mission import EmotionMirrorMission, RobotConfig
 from tests.conftest import make_settings
+from tests.support.in_process import InProcess, Server, http, publisher_for
 from tests.support.live_server import LiveServer
 from tests.support.rule_scenarios import troubled
 from tests.support.scenarios import at
@@ -30,11 +31,11 @@ ARI = "https://example.org/segb/robots/ari/v1/robot_ari"
 TIAGO = "https://example.org/segb/robots/tiago/v1/robot_tiago"
 
 
-def all_findings(url: str, **params: str) -> list[dict[str, object]]:
+def all_findings(server: Server, **params: str) -> list[dict[str, object]]:
     found: list[dict[str, object]] = []
     after = None
     while True:
-        answer = httpx.get(f"{url}/findings", params={**params, "limit": 5, **({"after": after} if after else {})})
+        answer = http(server, "GET", "/findings", params={**params, "limit": 5, **({"after": after} if after else {})})
         assert answer.status_code == 200, answer.text
         body = answer.json()
         found += body["findings"]
@@ -51,18 +52,25 @@ def by_rule(findings: list[dict[str, object]]) -> dict[str, set[str]]:
 
 
 @pytest.fixture
-def api() -> Iterator[str]:
+def api() -> Iterator[httpx.Client]:
+    with InProcess(create_app(make_settings())) as served:
+        yield served.client
+
+
+@pytest.fixture
+def live_api_url() -> Iterator[str]:
+    """Over real HTTP, for reading the stream with a time limit."""
     with LiveServer(create_app(make_settings())) as live:
         yield live.url
 
 
-def test_every_shipped_rule_finds_what_it_is_built_for_in_a_log_the_client_made(api: str) -> None:
+def test_every_shipped_rule_finds_what_it_is_built_for_in_a_log_the_client_made(api: httpx.Client) -> None:
     scenario, expected = troubled()
     scenario.publish_all(api)
     found = all_findings(api)
     assert by_rule(found) == expected
     assert set(expected) == {rule.stem for rule in SHIPPED.iterdir() if rule.suffix in (".rq", ".ttl")}
-    listed = {rule["id"]: rule for rule in httpx.get(f"{api}/rules").json()["rules"]}
+    listed = {rule["id"]: rule for rule in api.get("/rules").json()["rules"]}
     assert {rule_id: rule["findings"] for rule_id, rule in listed.items()} == {k: len(v) for k, v in expected.items()}
     late = next(f for f in found if f["rule"] == "late-answer")
     assert late["robot"] == ARI and late["human"].endswith("human_maria") and late["values"]["seconds"] == 14
@@ -74,9 +82,9 @@ def test_the_demo_is_clean_but_for_what_it_shows_on_purpose(tmp_path: Path) -> N
     """The demo's findings are its designed cases only: TIAGo overheard Maria and never answered her, every reply
     is the mission's fallback (no model runs in the demo), and Carlos looked angry (0.88). Every other rule, the
     data-quality ones among them, finds nothing."""
-    with LiveServer(create_app(make_settings(), demo=True)) as live:
-        settle(live.url)
-        found = all_findings(live.url)
+    with InProcess(create_app(make_settings(), demo=True)) as live:
+        settle(live.client)
+        found = all_findings(live.client)
     grouped = by_rule(found)
     assert set(grouped) == {"unanswered-message", "reply-without-model", "strong-negative-emotion"}
     assert grouped["unanswered-message"] == {"https://example.org/segb/robots/tiago/v1/message_user_1"}
@@ -85,9 +93,9 @@ def test_the_demo_is_clean_but_for_what_it_shows_on_purpose(tmp_path: Path) -> N
     assert anger["robot"] == TIAGO and anger["values"]["category"] == "anger" and anger["values"]["intensity"] == 0.88
 
 
-def test_a_reply_written_by_the_model_is_no_finding(api: str) -> None:
+def test_a_reply_written_by_the_model_is_no_finding(api: httpx.Client) -> None:
     """The emotion mirror with its model answering (the replier says "ollama"): replies credit the model."""
-    publisher = SEGBPublisher(base_url=api, default_user="mirror")
+    publisher = publisher_for(api, "mirror")
     mission = EmotionMirrorMission.start(
         RobotConfig(), human_id="maria", human_name="Maria", replier=lambda text: (f"Oh! {text}", "ollama"),
         publish=lambda logger: logger.publish(publisher),
@@ -98,10 +106,10 @@ def test_a_reply_written_by_the_model_is_no_finding(api: str) -> None:
     assert all_findings(api) == []
 
 
-def test_a_late_post_that_resolves_a_finding_removes_it(api: str) -> None:
+def test_a_late_post_that_resolves_a_finding_removes_it(api: httpx.Client) -> None:
     """The emotion mirror publishes after every event: Maria's message is unanswered until the reply's post, and
     an activity's missing start time until a later post gives it."""
-    publisher = SEGBPublisher(base_url=api, default_user="mirror")
+    publisher = publisher_for(api, "mirror")
     mission = EmotionMirrorMission.start(
         RobotConfig(), human_id="maria", human_name="Maria", publish=lambda logger: logger.publish(publisher)
     )
@@ -122,8 +130,8 @@ def test_a_late_post_that_resolves_a_finding_removes_it(api: str) -> None:
     assert all_findings(api, rule="activity-without-start") == []
 
 
-def test_the_answer_delay_and_the_intensity_threshold_are_the_rules_own_defaults(api: str) -> None:
-    publisher = SEGBPublisher(base_url=api, default_user="mirror")
+def test_the_answer_delay_and_the_intensity_threshold_are_the_rules_own_defaults(api: httpx.Client) -> None:
+    publisher = publisher_for(api, "mirror")
     mission = EmotionMirrorMission.start(
         RobotConfig(), human_id="maria", human_name="Maria", publish=lambda logger: logger.publish(publisher)
     )
@@ -136,26 +144,26 @@ def test_the_answer_delay_and_the_intensity_threshold_are_the_rules_own_defaults
     grouped = by_rule(all_findings(api))
     assert grouped["late-answer"] == {str(late.heard)}
     assert len(grouped["strong-negative-emotion"]) == 1
-    rules = {rule["id"]: rule for rule in httpx.get(f"{api}/rules").json()["rules"]}
+    rules = {rule["id"]: rule for rule in api.get("/rules").json()["rules"]}
     assert {p["name"]: p["default"] for p in rules["late-answer"]["parameters"]}["delay"] == "10"
     assert {p["name"]: p["default"] for p in rules["strong-negative-emotion"]["parameters"]}["threshold"] == "0.75"
 
 
-def test_findings_filter_page_and_download(api: str) -> None:
+def test_findings_filter_page_and_download(api: httpx.Client) -> None:
     scenario, expected = troubled()
     scenario.publish_all(api)
     everything = all_findings(api)
     assert len(everything) == sum(len(nodes) for nodes in expected.values())
     violations = all_findings(api, severity="violation")
     assert {f["rule"] for f in violations} == {"time-not-datetime", "emotion-out-of-range", "message-without-text"}
-    answer = httpx.get(f"{api}/findings", params={"severity": "violation", "limit": 1}).json()
+    answer = api.get("/findings", params={"severity": "violation", "limit": 1}).json()
     assert answer["counts"]["by_severity"]["violation"] == 3 and answer["has_more"]
     one = all_findings(api, rule="late-answer")
     assert [f["rule"] for f in one] == ["late-answer"]
     window = all_findings(api, since="2026-03-10T09:00:30Z", until="2026-03-10T09:01:10Z")
     assert {f["rule"] for f in window} == {"late-answer", "reply-without-model"}  # shapes' nodes have no time there
     assert all_findings(api, robot="https://example.org/segb/robots/nobody") == []
-    csv = httpx.get(f"{api}/findings", params={"format": "csv", "rule": "late-answer"})
+    csv = api.get("/findings", params={"format": "csv", "rule": "late-answer"})
     assert csv.headers["content-type"].startswith("text/csv")
     assert csv.text.splitlines()[0] == "time,rule,severity,robot,human,focus,message,values"
     assert "ARI answered Maria after 14 s" in csv.text
@@ -174,14 +182,15 @@ def test_findings_filter_page_and_download(api: str) -> None:
     ],
 )
 def test_a_bad_filter_is_refused_by_name(api: str, params: dict[str, str], named: str | None) -> None:
-    answer = httpx.get(f"{api}/findings", params=params)
+    answer = api.get("/findings", params=params)
     if named is None:
         assert answer.status_code == 404 and "no-such-rule" in answer.json()["detail"]
     else:
         assert answer.status_code == 422 and named in answer.text
 
 
-def test_the_stream_announces_new_findings(api: str) -> None:
+def test_the_stream_announces_new_findings(live_api_url: str) -> None:
+    api = live_api_url
     with httpx.stream("GET", f"{api}/findings/stream", timeout=20) as stream:
         lines = stream.iter_lines()
         assert next(lines).startswith("retry:")
@@ -235,8 +244,8 @@ def rules_with_two_more(folder: Path) -> Path:
 
 def test_a_rule_added_as_a_file_is_listed_evaluated_and_kept(tmp_path: Path) -> None:
     rules = rules_with_two_more(tmp_path / "rules")
-    with LiveServer(create_app(make_settings(rules_dir=rules))) as live:
-        listed = {rule["id"]: rule for rule in httpx.get(f"{live.url}/rules").json()["rules"]}
+    with InProcess(create_app(make_settings(rules_dir=rules))) as live:
+        listed = {rule["id"]: rule for rule in live.get("/rules").json()["rules"]}
         assert listed["silent-robot"]["severity"] == "violation" and listed["silent-robot"]["kind"] == "sparql"
         assert listed["state-without-location"]["kind"] == "shacl"
         nameless = "<https://example.org/robots/r2d2> a <http://kb.openrobots.org#Robot> ."
@@ -245,19 +254,19 @@ def test_a_rule_added_as_a_file_is_listed_evaluated_and_kept(tmp_path: Path) -> 
             '"2026-03-10T09:00:00Z"^^<http://www.w3.org/2001/XMLSchema#dateTime> ; '
             "<http://www.w3.org/ns/prov#wasAttributedTo> <https://example.org/robots/r2d2> ; a <urn:x:State> ."
         )
-        posted = httpx.post(f"{live.url}/ttl", content=f"{nameless}\n{state}", headers={"Content-Type": "text/turtle"})
+        posted = live.post("/ttl", content=f"{nameless}\n{state}", headers={"Content-Type": "text/turtle"})
         assert posted.status_code == 201
-        settle(live.url)
-        body = httpx.get(f"{live.url}/findings", params={"rule": ["silent-robot", "state-without-location"]}).json()
+        settle(live.client)
+        body = live.get("/findings", params={"rule": ["silent-robot", "state-without-location"]}).json()
         assert {(f["rule"], f["focus"]) for f in body["findings"]} == {
             ("silent-robot", "https://example.org/robots/r2d2"),
             ("state-without-location", "https://example.org/robots/r2d2/state_1"),
         }
         assert body["served_from"] == {"silent-robot": "rows", "state-without-location": "rows"}
         named = '<https://example.org/robots/r2d2> <http://schema.org/name> "R2" .'
-        assert httpx.post(f"{live.url}/ttl", content=named, headers={"Content-Type": "text/turtle"}).status_code == 201
-        settle(live.url)
-        assert all_findings(live.url, rule="silent-robot") == []
+        assert live.post("/ttl", content=named, headers={"Content-Type": "text/turtle"}).status_code == 201
+        settle(live.client)
+        assert all_findings(live.client, rule="silent-robot") == []
 
 
 def test_a_rule_file_that_is_not_a_rule_stops_the_server_naming_it(tmp_path: Path) -> None:
@@ -273,11 +282,11 @@ def test_a_rule_file_that_is_not_a_rule_stops_the_server_naming_it(tmp_path: Pat
         RuleCatalog(folder)
 
 
-def test_validate_answers_the_rules_findings_for_the_posted_log(api: str) -> None:
+def test_validate_answers_the_rules_findings_for_the_posted_log(api: httpx.Client) -> None:
     scenario, expected = troubled()
     scenario.run_steps()
     (turtle,) = scenario.published_turtle()
-    body = httpx.post(f"{api}/ttl/validate", json={"ttl_content": turtle}).json()
+    body = api.post("/ttl/validate", json={"ttl_content": turtle}).json()
     assert by_rule(body["findings"]) == expected
     assert body["rules_ok"] is False
     lines = turtle.splitlines()

@@ -36,6 +36,7 @@ schema = schemathesis.pytest.from_fixture("api_schema")
 
 
 # The event streams never end (a keep-alive every 15 s): they are tested in tests/api/test_streams.py.
+@pytest.mark.slow  # a bounded random run over every operation, on a live server
 @schema.exclude(path="/ttl/delete_all").exclude(path_regex="/stream$").parametrize()
 @settings(max_examples=25, deadline=None, suppress_health_check=list(HealthCheck))
 def test_no_input_breaks_the_server(case) -> None:  # type: ignore[no-untyped-def]

@@ -8,7 +8,7 @@ from pathlib import Path
 import httpx
 import pytest
 from rdflib import Graph, URIRef
-from semantic_log_generator import ActivityKind, SEGBPublisher
+from semantic_log_generator import ActivityKind
 
 from segb_server.backend.api.app import create_app
 from segb_server.backend.config import PACKAGE_ROOT
@@ -21,18 +21,18 @@ from segb_server.backend.store.base import Store
 from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.api.test_ingest_client import FIXTURE_FILES
 from tests.conftest import FIXTURES, make_settings
-from tests.support.live_server import LiveServer
+from tests.support.in_process import InProcess, publisher_for
 from tests.support.scenarios import at, keep_busy, lobby, robot_logger
 from tests.support.settle import settle
 
 
-def get(server: LiveServer, path: str, **params: object) -> httpx.Response:
-    return httpx.get(f"{server.url}{path}", params=params, timeout=60)  # type: ignore[arg-type]
+def get(server: InProcess, path: str, **params: object) -> httpx.Response:
+    return server.get(path, params=params)  # type: ignore[arg-type]
 
 
-def test_neighbourhood_of_a_human_holds_their_robot_and_messages(api: LiveServer) -> None:
+def test_neighbourhood_of_a_human_holds_their_robot_and_messages(api: InProcess) -> None:
     scenario = lobby()
-    scenario.publish_all(api.url)
+    scenario.publish_all(api.client)
     iris = {name: str(iri) for name, iri in scenario.iris.items()}
     graph = get(api, "/graph", focus=iris["juan"], depth=3).json()
     nodes = {node["id"]: node for node in graph["nodes"]}
@@ -47,9 +47,9 @@ def test_neighbourhood_of_a_human_holds_their_robot_and_messages(api: LiveServer
     assert [e["label"] for e in sender] == ["sender"]  # the PROV copy of the link is not drawn twice
 
 
-def test_graph_filters_kinds_time_search_and_limit(api: LiveServer) -> None:
+def test_graph_filters_kinds_time_search_and_limit(api: InProcess) -> None:
     scenario = lobby()
-    scenario.publish_all(api.url)
+    scenario.publish_all(api.client)
     people = get(api, "/graph", types="robot,human").json()
     assert sorted(node["label"] for node in people["nodes"]) == ["ARI", "Juan", "Maria", "TIAGo"]
     window = get(api, "/graph", since="2026-03-10T09:00:08Z", until="2026-03-10T09:00:10Z", types="message").json()
@@ -63,9 +63,9 @@ def test_graph_filters_kinds_time_search_and_limit(api: LiveServer) -> None:
     assert small["total_nodes"] > 5
 
 
-def test_resource_lists_triples_both_ways_with_labels(api: LiveServer) -> None:
+def test_resource_lists_triples_both_ways_with_labels(api: InProcess) -> None:
     scenario = lobby()
-    scenario.publish_all(api.url)
+    scenario.publish_all(api.client)
     body = get(api, "/resource", iri=str(scenario.iris["maria_1"])).json()
     assert body["kind"] == "message" and body["label"] == "I passed my driving test today!"
     out = {(s["predicate_label"], s.get("label") or s["value"]) for s in body["outgoing"]}
@@ -76,13 +76,13 @@ def test_resource_lists_triples_both_ways_with_labels(api: LiveServer) -> None:
     assert ("prov:wasDerivedFrom", str(scenario.iris["ari_1"])) in incoming
 
 
-def test_a_resource_many_things_point_at_is_read_a_page_at_a_time(api: LiveServer) -> None:
+def test_a_resource_many_things_point_at_is_read_a_page_at_a_time(api: InProcess) -> None:
     """A robot after a month is the object of one link per activity: the details read the first 500 and say
     more exist; an explanation around one of its activities still names the robot and tells only that act."""
     scenario = lobby()
-    scenario.publish_all(api.url)
+    scenario.publish_all(api.client)
     tiago = str(scenario.iris["tiago"])
-    keep_busy(api.url, tiago, 600)
+    keep_busy(api.client, tiago, 600)
     body = get(api, "/resource", iri=tiago).json()
     assert len(body["incoming"]) == 500 and body["incoming_truncated"] is True
     assert body["incoming"] == sorted(body["incoming"], key=lambda s: (s["predicate"], str(s["value"])))
@@ -94,9 +94,9 @@ def test_a_resource_many_things_point_at_is_read_a_page_at_a_time(api: LiveServe
     assert not any("busy" in step["activity"] for step in story["steps"])
 
 
-def test_explain_a_reply_gives_what_was_heard_the_models_and_the_trigger_in_order(api: LiveServer) -> None:
+def test_explain_a_reply_gives_what_was_heard_the_models_and_the_trigger_in_order(api: InProcess) -> None:
     scenario = lobby()
-    scenario.publish_all(api.url)
+    scenario.publish_all(api.client)
     iris = {name: str(iri) for name, iri in scenario.iris.items()}
     story = get(api, "/explain", iri=iris["ari_1"]).json()
     steps = story["steps"]
@@ -115,7 +115,7 @@ def test_explain_a_reply_gives_what_was_heard_the_models_and_the_trigger_in_orde
     assert reply["said"][0]["text"] == "Congratulations, Maria!" and reply["robot"]["label"] == "ARI"
 
 
-def test_words_heard_from_nobody_named_are_not_the_robots_until_the_log_names_a_speaker(api: LiveServer) -> None:
+def test_words_heard_from_nobody_named_are_not_the_robots_until_the_log_names_a_speaker(api: InProcess) -> None:
     """Who said a message, in the conversations report and in its explanation, follows what the log names: an
     utterance TIAGo only heard is an unidentified speaker's; a later post naming Maria as its sender makes it
     hers; a reply its response activity produced is TIAGo's."""
@@ -125,12 +125,12 @@ def test_words_heard_from_nobody_named_are_not_the_robots_until_the_log_names_a_
     words = tiago.log_message("Is it raining?", message_id="overheard", language="en", generated_by_activity=heard)
     answer = tiago.log_activity(activity_id="reply", activity_kind=ActivityKind.RESPONSE, started_at=at(2))
     tiago.log_message("Not yet.", message_id="reply", generated_by_activity=answer)
-    publisher = SEGBPublisher(base_url=api.url)
+    publisher = publisher_for(api.client)
 
     def told() -> tuple[list[tuple[object, object]], str]:
-        settle(api.url)
-        rows = httpx.get(f"{api.url}/reports/conversations", timeout=30).json()["rows"]
-        story = httpx.get(f"{api.url}/explain", params={"iri": str(words)}, timeout=30).json()
+        settle(api.client)
+        rows = api.get("/reports/conversations").json()["rows"]
+        story = api.get("/explain", params={"iri": str(words)}).json()
         seed = next(step for step in story["steps"] if step["role"] == "seed")
         return sorted((row["text"], row["speaker"]) for row in rows), seed["sentence"]
 
@@ -158,18 +158,18 @@ def test_words_heard_from_nobody_named_are_not_the_robots_until_the_log_names_a_
     ],
 )
 def test_bad_graph_requests_name_the_problem(
-    memory_api: LiveServer, path: str, params: dict, status: int, named: str
+    memory_api: InProcess, path: str, params: dict, status: int, named: str
 ) -> None:
     response = get(memory_api, path, **params)
     assert response.status_code == status
     assert named in response.text
 
 
-def test_resources_read_together_equal_each_read_alone(api: LiveServer, store: Store) -> None:
+def test_resources_read_together_equal_each_read_alone(api: InProcess, store: Store) -> None:
     """An explanation reads its nodes in batches: two queries for many resources must describe each one as
     reading it alone does, also when the batch reaches its limit and falls back to one resource at a time."""
     scenario = lobby()
-    scenario.publish_all(api.url)
+    scenario.publish_all(api.client)
     graph = GraphService(Catalog(PACKAGE_ROOT / "sparql"), store, None, lambda _: True)  # type: ignore[arg-type]
     iris = sorted({str(iri) for iri in scenario.iris.values()})
     together = graph.resources(iris, incoming=FOLLOWED_INCOMING)
@@ -192,17 +192,15 @@ EXPLAINED_KINDS = ("activity", "message", "emotion", "state")  # what /explain t
 
 
 def test_explanations_from_the_graph_index_equal_those_from_the_store(
-    api: LiveServer, store: Store, tmp_path: Path
+    api: InProcess, store: Store, tmp_path: Path
 ) -> None:
     """Once built, the graph index stands in for the store when an explanation reads its nodes: every story it
     tells must be the one the store's own statements tell, for every message, activity, emotion and state of
     the scenario and of the client's fixtures (versions, confidences and intensities included)."""
-    lobby().publish_all(api.url)
+    lobby().publish_all(api.client)
     for name in FIXTURE_FILES:
         text = (FIXTURES / name).read_text(encoding="utf-8")
-        assert (
-            httpx.post(f"{api.url}/ttl", json={"ttl_content": text, "user": "fixtures"}, timeout=60).status_code == 201
-        )
+        assert api.post("/ttl", json={"ttl_content": text, "user": "fixtures"}).status_code == 201
     catalog = Catalog(PACKAGE_ROOT / "sparql")
     index = GraphIndex(store, tmp_path / "graph.sqlite3", detail_literals=TOLD_LITERALS)
     index.build(through=0)
@@ -224,22 +222,21 @@ def test_explanations_from_the_graph_index_equal_those_from_the_store(
     unbuilt.close()
 
 
+@pytest.mark.slow
 def test_explanations_from_an_index_behind_the_store_and_the_steps_on_their_way_equal_those_from_the_store(
-    api: LiveServer, store: Store, tmp_path: Path
+    api: InProcess, store: Store, tmp_path: Path
 ) -> None:
     """An explanation asked right after a 201 reads the index and adds the steps it does not hold yet: told
     with the posts the index has not seen (here every fixture, given along with triples it already holds), each
     story must be the store's."""
-    lobby().publish_all(api.url)
+    lobby().publish_all(api.client)
     catalog = Catalog(PACKAGE_ROOT / "sparql")
     index = GraphIndex(store, tmp_path / "graph.sqlite3", detail_literals=TOLD_LITERALS)
     index.build(through=0)  # the lobby only
     index.ready = True
     for name in FIXTURE_FILES:
         text = (FIXTURES / name).read_text(encoding="utf-8")
-        assert (
-            httpx.post(f"{api.url}/ttl", json={"ttl_content": text, "user": "fixtures"}, timeout=60).status_code == 201
-        )
+        assert api.post("/ttl", json={"ttl_content": text, "user": "fixtures"}).status_code == 201
     everything = [quad for batch in store.batches(20_000) for quad in batch]
     behind = ExplainService(GraphService(catalog, store, index, lambda _: True))
     caught_up = ExplainService(GraphService(catalog, store, index, lambda _: True, pending=lambda _limit: everything))
@@ -268,14 +265,14 @@ def test_an_explanation_asked_right_after_a_201_tells_that_post_and_after_a_clea
     explained; after the clearing's 201, none. What answers is the index and the journal, whatever the store: the
     embedded one keeps the views busiest for the same posts (its upkeep is this process's own work)."""
     store = OxigraphStore("http://amor-segb/events", tmp_path / "oxigraph")
-    with LiveServer(create_app(make_settings(), store=store)) as api:
+    with InProcess(create_app(make_settings(), store=store)) as api:
         _explain_under_a_stream_of_posts(api)
     store.close()
 
 
-def _explain_under_a_stream_of_posts(api: LiveServer) -> None:
+def _explain_under_a_stream_of_posts(api: InProcess) -> None:
     stop = threading.Event()
-    busy = threading.Thread(target=_post_until, args=(api.url, stop), daemon=True)
+    busy = threading.Thread(target=_post_until, args=(api.client, stop), daemon=True)
     busy.start()
     try:
         _explain_each_publish_then_clear(api)
@@ -284,22 +281,21 @@ def _explain_under_a_stream_of_posts(api: LiveServer) -> None:
         busy.join()
 
 
-def _post_until(base_url: str, stop: threading.Event) -> None:
+def _post_until(client: httpx.Client, stop: threading.Event) -> None:
     """Small posts one after another (a robot logging fast), until `stop`."""
-    with httpx.Client(base_url=base_url, timeout=60) as client:
-        n = 0
-        while not stop.is_set():
-            n += 1
-            ttl = (
-                f"<https://example.org/fast/a{n}> a <http://www.w3.org/ns/prov#Activity> ; "
-                f'<http://www.w3.org/2000/01/rdf-schema#label> "step {n}" .'
-            )
-            assert client.post("/ttl", json={"ttl_content": ttl, "user": "fast"}).status_code == 201
+    n = 0
+    while not stop.is_set():
+        n += 1
+        ttl = (
+            f"<https://example.org/fast/a{n}> a <http://www.w3.org/ns/prov#Activity> ; "
+            f'<http://www.w3.org/2000/01/rdf-schema#label> "step {n}" .'
+        )
+        assert client.post("/ttl", json={"ttl_content": ttl, "user": "fast"}).status_code == 201
 
 
-def _explain_each_publish_then_clear(api: LiveServer) -> None:
+def _explain_each_publish_then_clear(api: InProcess) -> None:
     scenario = lobby()
-    publishers = {name: SEGBPublisher(base_url=api.url, default_user=name) for name in scenario.loggers}
+    publishers = {name: publisher_for(api.client, name) for name in scenario.loggers}
     explained: set[str] = set()
 
     def publish_and_explain(robot: str) -> None:
@@ -313,7 +309,7 @@ def _explain_each_publish_then_clear(api: LiveServer) -> None:
 
     scenario.run_steps(publish_and_explain)
     assert len(explained) > 10
-    response = httpx.post(f"{api.url}/ttl/delete_all", json={"user": "auditor"}, timeout=60)
+    response = api.post("/ttl/delete_all", json={"user": "auditor"})
     assert response.status_code in (200, 201), response.text
     for iri in sorted(explained):
         assert get(api, "/explain", iri=iri).status_code == 404, iri

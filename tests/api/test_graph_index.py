@@ -13,7 +13,6 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-import httpx
 import pytest
 from pyoxigraph import Literal, NamedNode, Quad
 
@@ -38,7 +37,7 @@ from segb_server.backend.store.base import Store
 from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.conftest import STORE_KINDS, make_settings, virtuoso_store
 from tests.support.histories import EX, History
-from tests.support.live_server import LiveServer
+from tests.support.in_process import InProcess, Server, http
 from tests.support.settle import settle
 
 XSD_DATETIME = "http://www.w3.org/2001/XMLSchema#dateTime"
@@ -53,13 +52,13 @@ REQUESTS = [
 ]
 
 
-def served(url: str, request: GraphRequest) -> dict[str, object]:
+def served(server: Server, request: GraphRequest) -> dict[str, object]:
     params: dict[str, object] = {"limit": request.limit}
     if request.robot:
         params["robot"] = request.robot
     if request.focus:
         params.update(focus=request.focus, depth=request.depth)
-    answer = httpx.get(f"{url}/graph", params=params, timeout=60)
+    answer = http(server, "GET", "/graph", params=params)
     assert answer.status_code == 200, answer.text
     body = answer.json()
     assert isinstance(body.pop("through"), int)  # the journal entry the drawing includes, for live viewers
@@ -101,28 +100,28 @@ def count_view_draws(index: GraphIndex) -> list[GraphRequest]:
     return drawn
 
 
-def post(url: str, triples: list[str] | None) -> None:
+def post(server: Server, triples: list[str] | None) -> None:
     if triples is None:
-        assert httpx.post(f"{url}/ttl/delete_all", json={}).status_code == 200
+        assert http(server, "POST", "/ttl/delete_all", json={}).status_code == 200
         return
-    answer = httpx.post(f"{url}/ttl", content="\n".join(triples), headers={"Content-Type": "application/n-triples"})
+    answer = http(server, "POST", "/ttl", content="\n".join(triples), headers={"Content-Type": "application/n-triples"})
     assert answer.status_code == 201, answer.text
 
 
 @pytest.fixture(params=STORE_KINDS)
-def server(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[tuple[str, Store]]:
+def server(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[tuple[Server, Store]]:
     if request.param == "virtuoso":
         store: Store = virtuoso_store(request.getfixturevalue("virtuoso"))
     else:
         store = OxigraphStore("http://amor-segb/events", tmp_path / "oxigraph")
-    with LiveServer(create_app(make_settings(store=request.param, data_dir=tmp_path), store=store)) as live:
-        yield live.url, store
+    with InProcess(create_app(make_settings(store=request.param, data_dir=tmp_path), store=store)) as live:
+        yield live.client, store
     if request.param == "virtuoso":
         store.clear()
     store.close()
 
 
-def test_the_graph_kept_current_equals_a_fresh_index_after_every_step(server: tuple[str, Store]) -> None:
+def test_the_graph_kept_current_equals_a_fresh_index_after_every_step(server: tuple[Server, Store]) -> None:
     url, store = server
     history = History(7)
     for step in range(14):
@@ -145,10 +144,10 @@ def served_history(
     settings = make_settings(store="oxigraph", data_dir=tmp_path / "data")
     history = History(seed)
     caplog.set_level(logging.INFO, logger="segb.views")
-    with LiveServer(create_app(settings, store=store)) as live:
+    with InProcess(create_app(settings, store=store)) as live:
         for _ in range(posts):
-            post(live.url, history.next_post() or [])
-        settle(live.url)
+            post(live.client, history.next_post() or [])
+        settle(live.client)
     return store, settings, history
 
 
@@ -158,18 +157,18 @@ def test_a_restart_catches_the_index_up_from_the_journal(tmp_path: Path, caplog:
         assert any(record.getMessage().startswith("view graph built") for record in caplog.records)
         behind = tmp_path / "graph-behind.sqlite3"
         shutil.copy(settings.data_dir / GRAPH_FILE, behind)
-        with LiveServer(create_app(settings, store=store)) as live:
+        with InProcess(create_app(settings, store=store)) as live:
             for _ in range(6):
                 triples = history.next_post()
                 if triples is not None:  # a clearing would make the restart build the index again
-                    post(live.url, triples)
-            settle(live.url)
-            current = served(live.url, REQUESTS[0])
+                    post(live.client, triples)
+            settle(live.client)
+            current = served(live.client, REQUESTS[0])
         shutil.copy(behind, settings.data_dir / GRAPH_FILE)  # as if the last posts were never projected
         caplog.clear()
-        with LiveServer(create_app(settings, store=store)) as live:
-            settle(live.url)
-            assert served(live.url, REQUESTS[0]) == current == fresh(store, REQUESTS[0])
+        with InProcess(create_app(settings, store=store)) as live:
+            settle(live.client)
+            assert served(live.client, REQUESTS[0]) == current == fresh(store, REQUESTS[0])
         built = [record.getMessage() for record in caplog.records if record.getMessage().startswith("view graph built")]
         assert built == []  # caught up from the journal, not built again from the store
     finally:
@@ -214,12 +213,12 @@ def test_an_index_written_with_other_tables_is_built_again_at_start(
         database.commit()
         database.close()
         caplog.clear()
-        with LiveServer(create_app(settings, store=store)) as live:
-            settle(live.url)
-            post(live.url, history.next_post() or [])
-            settle(live.url)
+        with InProcess(create_app(settings, store=store)) as live:
+            settle(live.client)
+            post(live.client, history.next_post() or [])
+            settle(live.client)
             for request in (FIRST_VIEW, REQUESTS[0]):
-                assert served(live.url, request) == fresh(store, request), request
+                assert served(live.client, request) == fresh(store, request), request
         messages = [record.getMessage() for record in caplog.records]
         assert any(message.startswith("view graph built") for message in messages)
         assert not any("failed" in message for message in messages), messages

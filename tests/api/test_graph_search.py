@@ -2,16 +2,14 @@
 
 from __future__ import annotations
 
-import httpx
-
-from tests.support.live_server import LiveServer
+from tests.support.in_process import InProcess
 from tests.support.scenarios import lobby
 
 
-def test_a_search_draws_its_matches_before_their_neighbours(memory_api: LiveServer) -> None:
+def test_a_search_draws_its_matches_before_their_neighbours(memory_api: InProcess) -> None:
     scenario = lobby()
-    scenario.publish_all(memory_api.url)
-    found = httpx.get(f"{memory_api.url}/graph", params={"q": "driving test", "limit": 2}).json()
+    scenario.publish_all(memory_api.client)
+    found = memory_api.get("/graph", params={"q": "driving test", "limit": 2}).json()
     message = str(scenario.iris["maria_1"])
     drawn = [node["id"] for node in found["nodes"]]
     hits = [iri for iri in drawn if iri in found["matches"]]

@@ -7,65 +7,67 @@ import time
 from pathlib import Path
 
 import httpx
+import pytest
 
 from segb_server.backend.api.app import create_app
 from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.conftest import make_settings, virtuoso_store
-from tests.support.live_server import LiveServer
+from tests.support.in_process import InProcess
 from tests.support.settle import settle
 from tests.support.virtuoso import VirtuosoProcess
 
 
 def test_live_and_ready_on_the_embedded_store(tmp_path: Path) -> None:
-    with LiveServer(create_app(make_settings(store="oxigraph", data_dir=tmp_path))) as server:
-        live = httpx.get(f"{server.url}/healthz/live")
-        ready = httpx.get(f"{server.url}/healthz/ready")
+    with InProcess(create_app(make_settings(store="oxigraph", data_dir=tmp_path))) as server:
+        live = server.get("/healthz/live")
+        ready = server.get("/healthz/ready")
     assert (live.status_code, live.text) == (200, '{"live": true}')
     assert (ready.status_code, ready.text) == (200, '{"ready": true, "oxigraph": true}')
 
 
+@pytest.mark.virtuoso
 def test_readiness_follows_virtuoso_down_and_back_without_a_restart(tmp_path: Path) -> None:
     process = VirtuosoProcess(tmp_path)
     process.start()
     store = virtuoso_store(process, "http://amor-segb/events")
     try:
-        with LiveServer(create_app(make_settings(store="virtuoso"), store=store)) as server:
-            url = f"{server.url}/healthz/ready"
-            up = httpx.get(url)
+        with InProcess(create_app(make_settings(store="virtuoso"), store=store)) as server:
+            up = server.get("/healthz/ready")
             assert (up.status_code, up.text) == (200, '{"ready": true, "virtuoso": true}')
 
             process.stop()
-            down = httpx.get(url)
+            down = server.get("/healthz/ready")
             assert down.status_code == 503
             assert down.json()["ready"] is False and down.json()["virtuoso"] is False
             # Kept in the journal, but not applied: 503 with Retry-After, saying so.
-            waiting = httpx.post(f"{server.url}/ttl", json={"ttl_content": "<https://e.org/a> <https://e.org/b> 1 ."})
+            waiting = server.post("/ttl", json={"ttl_content": "<https://e.org/a> <https://e.org/b> 1 ."})
             assert waiting.status_code == 503 and waiting.headers["retry-after"]
             assert "kept in the journal" in waiting.json()["detail"] and "virtuoso" in waiting.json()["detail"]
 
             process.start()
-            assert wait_until_ready(url).status_code == 200
-            settle(server.url)  # the kept post applied and in the reports' rows: nothing behind, nothing to say
-            back = httpx.get(url)
+            assert wait_until_ready(server).status_code == 200
+            settle(server.client)  # the kept post applied and in the reports' rows: nothing behind, nothing to say
+            back = server.get("/healthz/ready")
             assert (back.status_code, back.text) == (200, '{"ready": true, "virtuoso": true}')
             assert store.count() == 1  # the post kept while Virtuoso was down was applied once it came back
-            again = httpx.post(f"{server.url}/ttl", json={"ttl_content": "<https://e.org/a> <https://e.org/b> 1 ."})
+            again = server.post("/ttl", json={"ttl_content": "<https://e.org/a> <https://e.org/b> 1 ."})
             assert (again.status_code, again.json()["triples_new"]) == (201, 0)
     finally:
         store.close()
         process.stop()
 
 
-def wait_until_ready(url: str, timeout: float = 30) -> httpx.Response:
+def wait_until_ready(server: InProcess, timeout: float = 30) -> httpx.Response:
     """Readiness once the store answers and the journal is applied (the applier retries on its own)."""
     deadline = time.monotonic() + timeout
     while True:
-        answer = httpx.get(url)
+        answer = server.get("/healthz/ready")
         if (answer.status_code == 200 and "apply_lag" not in answer.json()) or time.monotonic() > deadline:
             return answer
         time.sleep(0.1)
 
 
+@pytest.mark.slow
 def test_health_keeps_answering_while_a_large_ingest_runs(tmp_path: Path) -> None:
     """Behaviour, not a wall-clock figure (that is bench's "health under load"): readiness probes keep being
     answered, one after another, while one large post is still being ingested."""
@@ -75,17 +77,16 @@ def test_health_keeps_answering_while_a_large_ingest_runs(tmp_path: Path) -> Non
     ).encode()
     store = OxigraphStore("http://amor-segb/events", tmp_path / "store")
     answered_during_ingest = 0
-    with LiveServer(create_app(make_settings(store="oxigraph"), store=store)) as server:
+    with InProcess(create_app(make_settings(store="oxigraph"), store=store)) as server:
         ingest = threading.Thread(
-            target=lambda: httpx.post(
-                f"{server.url}/ttl", content=payload, headers={"Content-Type": "application/n-triples"}, timeout=300
+            target=lambda: server.post(
+                "/ttl", content=payload, headers={"Content-Type": "application/n-triples"}
             ).raise_for_status()
         )
         ingest.start()
-        with httpx.Client(base_url=server.url, timeout=60) as client:
-            while ingest.is_alive():
-                assert client.get("/healthz/ready").status_code == 200
-                answered_during_ingest += ingest.is_alive()  # counted only if the ingest had not answered yet
+        while ingest.is_alive():
+            assert server.get("/healthz/ready").status_code == 200
+            answered_during_ingest += ingest.is_alive()  # counted only if the ingest had not answered yet
         ingest.join()
     assert store.count() == 250_000
     assert answered_during_ingest >= 10, "health was not answered while the ingest ran: it waited behind it"

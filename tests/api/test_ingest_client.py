@@ -1,6 +1,9 @@
-"""The PyPI client `semantic-log-generator` 1.0.5, unchanged, publishing into the server over HTTP."""
+"""The PyPI client `semantic-log-generator` 1.0.5, unchanged, publishing into the server over real HTTP: its own
+transport (requests) against uvicorn, on both stores. Elsewhere the tests serve the API in process."""
 
 from __future__ import annotations
+
+from collections.abc import Iterator
 
 import httpx
 import pytest
@@ -8,11 +11,19 @@ import requests
 from pyoxigraph import RdfFormat
 from semantic_log_generator import SEGBPublisher
 
+from segb_server.backend.api.app import create_app
 from segb_server.backend.store.base import Store
-from tests.conftest import FIXTURES
+from tests.conftest import FIXTURES, make_settings
 from tests.support.graphs import triples, value_triples
 from tests.support.live_server import LiveServer
 from tests.support.scenarios import lobby
+
+
+@pytest.fixture
+def api(store: Store) -> Iterator[LiveServer]:
+    """The API over real HTTP, on each store (this module's tests are about the client's own transport)."""
+    with LiveServer(create_app(make_settings(), store=store)) as server:
+        yield server
 
 
 def stored_graph(server: LiveServer) -> bytes:

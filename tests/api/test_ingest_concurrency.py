@@ -1,5 +1,5 @@
-"""Many robots posting at once over real HTTP to the on-disk store: overlapping graphs are counted exactly
-once, every answered post already has its receipt, and the ledger chain stays whole."""
+"""Many robots posting at once to the on-disk store, through the whole app in process: overlapping graphs are counted
+exactly once, every answered post already has its receipt, and the ledger chain stays whole."""
 
 from __future__ import annotations
 
@@ -8,13 +8,12 @@ from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-import httpx
 import pytest
 from pyoxigraph import RdfFormat, parse
 
 from segb_server.backend.api.app import create_app
 from tests.conftest import make_settings
-from tests.support.live_server import LiveServer
+from tests.support.in_process import InProcess
 
 ROBOTS = 16
 POSTS_PER_ROBOT = 6
@@ -31,27 +30,26 @@ def payload(robot: int, post: int) -> str:
 
 
 @pytest.fixture
-def disk_api(tmp_path: Path) -> Iterator[LiveServer]:
-    with LiveServer(create_app(make_settings(store="oxigraph", data_dir=tmp_path))) as server:
+def disk_api(tmp_path: Path) -> Iterator[InProcess]:
+    with InProcess(create_app(make_settings(store="oxigraph", data_dir=tmp_path))) as server:
         yield server
 
 
 def test_concurrent_overlapping_posts_count_each_triple_once_and_are_receipted_before_the_answer(
-    disk_api: LiveServer, tmp_path: Path
+    disk_api: InProcess, tmp_path: Path
 ) -> None:
-    ledger_file = tmp_path / "ledger.sqlite3"
+    ledger_file = tmp_path / "journal.sqlite3"
 
     def robot(index: int) -> list[tuple[dict, bool]]:
         seen = []
-        with httpx.Client(base_url=disk_api.url, timeout=60) as client:
-            for post in range(POSTS_PER_ROBOT):
-                answer = client.post("/ttl", json={"ttl_content": payload(index, post), "user": f"robot{index}"})
-                assert answer.status_code == 201, answer.text
-                body = answer.json()
-                # Read the SQLite file directly, right after the answer: the receipt must already be committed.
-                with sqlite3.connect(ledger_file) as ledger:
-                    found = ledger.execute("SELECT COUNT(*) FROM receipts WHERE log_id = ?", (body["log_id"],))
-                    seen.append((body, found.fetchone()[0] == 1))
+        for post in range(POSTS_PER_ROBOT):
+            answer = disk_api.post("/ttl", json={"ttl_content": payload(index, post), "user": f"robot{index}"})
+            assert answer.status_code == 201, answer.text
+            body = answer.json()
+            # Read the SQLite file directly, right after the answer: the receipt must already be committed.
+            with sqlite3.connect(ledger_file) as ledger:
+                found = ledger.execute("SELECT COUNT(*) FROM receipts WHERE log_id = ?", (body["log_id"],))
+                seen.append((body, found.fetchone()[0] == 1))
         return seen
 
     with ThreadPoolExecutor(max_workers=ROBOTS) as pool:
@@ -61,11 +59,11 @@ def test_concurrent_overlapping_posts_count_each_triple_once_and_are_receipted_b
     for index in range(ROBOTS):
         for post in range(POSTS_PER_ROBOT):
             sent.update(parse(payload(index, post).encode(), RdfFormat.TURTLE))
-    exported = httpx.get(f"{disk_api.url}/events", headers={"Accept": "application/n-triples"}, timeout=60)
+    exported = disk_api.get("/events", headers={"Accept": "application/n-triples"})
     stored = {line for line in exported.text.splitlines() if line.strip()}
 
     assert all(receipted for _, receipted in answers)
     assert len(answers) == ROBOTS * POSTS_PER_ROBOT
     assert sum(body["triples_new"] for body, _ in answers) == len(sent) == len(stored)
-    verified = httpx.get(f"{disk_api.url}/ledger/verify", timeout=60).json()
+    verified = disk_api.get("/ledger/verify").json()
     assert verified == {"valid": True, "receipts": ROBOTS * POSTS_PER_ROBOT}

@@ -11,22 +11,38 @@ import pytest
 
 from segb_server.backend.api.app import create_app
 from segb_server.backend.store.base import Store
+from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.conftest import make_settings
-from tests.support.live_server import LiveServer
+from tests.support.in_process import InProcess
 
 GOOD = '@prefix ex: <https://ex.org/> .\nex:ari a ex:Robot ;\n    ex:name "ARI" .\n'
 
 
-@pytest.fixture
-def small_limits_api(memory_store: Store) -> Iterator[LiveServer]:
+def small_limits(store: Store) -> InProcess:
+    """The API with small limits on `store`, which holds GOOD (two triples) once entered."""
     settings = make_settings(max_body_bytes=4096, max_decompressed_bytes=8192, max_triples_per_post=50)
-    with LiveServer(create_app(settings, store=memory_store)) as server:
-        httpx.post(f"{server.url}/ttl", json={"ttl_content": GOOD}).raise_for_status()
+    return InProcess(create_app(settings, store=store))
+
+
+@pytest.fixture
+def small_limits_api(memory_store: Store) -> Iterator[InProcess]:
+    with small_limits(memory_store) as server:
+        server.post("/ttl", json={"ttl_content": GOOD}).raise_for_status()
         yield server
 
 
-def post(server: LiveServer, **kwargs: object) -> httpx.Response:
-    return httpx.post(f"{server.url}/ttl", timeout=30, **kwargs)  # type: ignore[arg-type]
+@pytest.fixture(scope="module")
+def refusing_api() -> Iterator[tuple[InProcess, Store]]:
+    """One server for every bad input: each is refused and writes nothing, so each finds the store as it was."""
+    store = OxigraphStore("http://amor-segb/events")
+    with small_limits(store) as server:
+        server.post("/ttl", json={"ttl_content": GOOD}).raise_for_status()
+        yield server, store
+    store.close()
+
+
+def post(server: InProcess, **kwargs: object) -> httpx.Response:
+    return server.post("/ttl", **kwargs)  # type: ignore[arg-type]
 
 
 def many_triples(count: int) -> str:
@@ -100,11 +116,10 @@ BAD_INPUTS = {
 
 
 @pytest.mark.parametrize("case", BAD_INPUTS, ids=list(BAD_INPUTS))
-def test_bad_input_is_refused_and_nothing_is_written(
-    small_limits_api: LiveServer, memory_store: Store, case: str
-) -> None:
+def test_bad_input_is_refused_and_nothing_is_written(refusing_api: tuple[InProcess, Store], case: str) -> None:
+    small_limits_api, memory_store = refusing_api
     request, status, message = BAD_INPUTS[case]
-    before = httpx.get(f"{small_limits_api.url}/events", headers={"Accept": "application/n-triples"}).text
+    before = small_limits_api.get("/events", headers={"Accept": "application/n-triples"}).text
 
     answer = post(small_limits_api, **request)
 
@@ -112,12 +127,12 @@ def test_bad_input_is_refused_and_nothing_is_written(
     body = answer.json()
     assert message in json.dumps(body), body
     assert body["status"] == status
-    after = httpx.get(f"{small_limits_api.url}/events", headers={"Accept": "application/n-triples"}).text
+    after = small_limits_api.get("/events", headers={"Accept": "application/n-triples"}).text
     assert after == before
     assert memory_store.count() == 2
 
 
-def test_malformed_turtle_reports_line_and_column_fields(small_limits_api: LiveServer) -> None:
+def test_malformed_turtle_reports_line_and_column_fields(small_limits_api: InProcess) -> None:
     answer = post(small_limits_api, json={"ttl_content": "@prefix ex: <https://ex.org/> .\nex:a ex:b ex:c ex:d ."})
     assert answer.status_code == 400
     assert answer.json()["line"] == 2
@@ -126,7 +141,7 @@ def test_malformed_turtle_reports_line_and_column_fields(small_limits_api: LiveS
 
 
 def test_a_later_error_in_a_large_payload_writes_none_of_its_good_triples(
-    small_limits_api: LiveServer, memory_store: Store
+    small_limits_api: InProcess, memory_store: Store
 ) -> None:
     payload = many_triples(40) + "<https://ex.org/broken> <https://ex.org/p> .\n"
     answer = post(small_limits_api, content=payload.encode(), headers={"Content-Type": "application/n-triples"})
@@ -135,7 +150,7 @@ def test_a_later_error_in_a_large_payload_writes_none_of_its_good_triples(
     assert memory_store.count() == 2
 
 
-def test_raw_turtle_n_triples_and_gzip_are_accepted(small_limits_api: LiveServer, memory_store: Store) -> None:
+def test_raw_turtle_n_triples_and_gzip_are_accepted(small_limits_api: InProcess, memory_store: Store) -> None:
     raw = post(
         small_limits_api,
         content=b'<https://ex.org/t> <https://ex.org/p> "t" .',
@@ -159,14 +174,14 @@ def test_raw_turtle_n_triples_and_gzip_are_accepted(small_limits_api: LiveServer
     assert memory_store.count() == 2 + 1 + 1 + 3
 
 
-def test_a_document_with_only_prefixes_is_accepted_with_zero_triples(small_limits_api: LiveServer) -> None:
+def test_a_document_with_only_prefixes_is_accepted_with_zero_triples(small_limits_api: InProcess) -> None:
     answer = post(small_limits_api, json={"ttl_content": "@prefix ex: <https://ex.org/> .\n"})
     assert answer.status_code == 201
     assert answer.json()["triples_received"] == 0
 
 
 def test_blank_nodes_are_skolemised_and_do_not_duplicate_on_republish(
-    small_limits_api: LiveServer, memory_store: Store
+    small_limits_api: InProcess, memory_store: Store
 ) -> None:
     first = "@prefix ex: <https://ex.org/> .\nex:ari ex:pose [ ex:x 1 ; ex:y 2 ] ; ex:seen [ ex:who ex:maria ] .\n"
     relabelled = (
@@ -178,6 +193,6 @@ def test_blank_nodes_are_skolemised_and_do_not_duplicate_on_republish(
 
     assert one.json()["triples_new"] == 5
     assert two.json()["triples_new"] == 1  # only ex:extra: the same blank nodes got the same IRIs
-    exported = httpx.get(f"{small_limits_api.url}/events", headers={"Accept": "application/n-triples"}).text
+    exported = small_limits_api.get("/events", headers={"Accept": "application/n-triples"}).text
     assert "_:" not in exported
     assert exported.count("http://amor-segb/.well-known/genid/") == 5  # 3 triples as subject, 2 as object

@@ -8,20 +8,20 @@ import hashlib
 import sqlite3
 import subprocess
 import zlib
+from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import httpx
 import pytest
 from pyoxigraph import RdfFormat
-from semantic_log_generator import SEGBPublisher
 
 from segb_server.backend.api.app import create_app
 from segb_server.backend.auth import mint_token
 from tests.cli.test_cli import segb
 from tests.conftest import FIXTURES, make_settings
 from tests.support.graphs import triples
-from tests.support.live_server import LiveServer
+from tests.support.in_process import InProcess, Server, http, publisher_for
 from tests.support.scenarios import lobby
 
 XSD = "http://www.w3.org/2001/XMLSchema#"
@@ -32,61 +32,61 @@ AS_SENT = (
 )
 
 
-def post(url: str, turtle: str, **headers: str) -> httpx.Response:
-    return httpx.post(f"{url}/ttl", json={"ttl_content": turtle, "user": "ari"}, headers=headers, timeout=60)
+def post(server: Server, turtle: str, **headers: str) -> httpx.Response:
+    return http(server, "POST", "/ttl", json={"ttl_content": turtle, "user": "ari"}, headers=headers)
 
 
 @pytest.fixture
-def disk_api(tmp_path: Path) -> LiveServer:
-    with LiveServer(create_app(make_settings(store="oxigraph", data_dir=tmp_path))) as server:
+def disk_api(tmp_path: Path) -> Iterator[InProcess]:
+    with InProcess(create_app(make_settings(store="oxigraph", data_dir=tmp_path))) as server:
         yield server
 
 
-def test_a_receipt_opens_its_new_triples_exactly_as_received(memory_api: LiveServer) -> None:
-    first = post(memory_api.url, AS_SENT).json()
-    entry = httpx.get(f"{memory_api.url}/ledger/{first['log_id']}").json()
+def test_a_receipt_opens_its_new_triples_exactly_as_received(memory_api: InProcess) -> None:
+    first = post(memory_api.client, AS_SENT).json()
+    entry = memory_api.get(f"/ledger/{first['log_id']}").json()
     kept = entry["content"]
     assert f'"8.7e-01"^^<{XSD}double>' in kept and f'"5"^^<{XSD}long>' in kept and f'"1"^^<{XSD}boolean>' in kept
     assert hashlib.sha256(kept.encode()).hexdigest() == entry["receipt"]["content_sha256"]
-    raw = httpx.get(f"{memory_api.url}/ledger/{first['log_id']}", headers={"Accept": "application/n-triples"})
+    raw = memory_api.get(f"/ledger/{first['log_id']}", headers={"Accept": "application/n-triples"})
     assert raw.content == kept.encode()
 
     # A cumulative re-publish records only what is new; a pure re-publish records nothing.
-    second = post(memory_api.url, AS_SENT + 'ex:reading ex:note "late" .\n').json()
+    second = post(memory_api.client, AS_SENT + 'ex:reading ex:note "late" .\n').json()
     assert second["triples_new"] == 1
-    assert httpx.get(f"{memory_api.url}/ledger/{second['log_id']}").json()["content"].count("\n") == 1
-    third = post(memory_api.url, AS_SENT).json()
-    assert (third["triples_new"], httpx.get(f"{memory_api.url}/ledger/{third['log_id']}").json()["content"]) == (0, "")
-    assert httpx.get(f"{memory_api.url}/ledger/no-such-id").status_code == 404
+    assert memory_api.get(f"/ledger/{second['log_id']}").json()["content"].count("\n") == 1
+    third = post(memory_api.client, AS_SENT).json()
+    assert (third["triples_new"], memory_api.get(f"/ledger/{third['log_id']}").json()["content"]) == (0, "")
+    assert memory_api.get("/ledger/no-such-id").status_code == 404
 
 
-def test_the_graph_as_received_keeps_what_the_store_canonicalises(memory_api: LiveServer) -> None:
-    post(memory_api.url, AS_SENT)
-    stored = httpx.get(f"{memory_api.url}/events", params={"format": "ntriples"}).text
-    received = httpx.get(f"{memory_api.url}/events", params={"format": "ntriples", "form": "received"}).text
+def test_the_graph_as_received_keeps_what_the_store_canonicalises(memory_api: InProcess) -> None:
+    post(memory_api.client, AS_SENT)
+    stored = memory_api.get("/events", params={"format": "ntriples"}).text
+    received = memory_api.get("/events", params={"format": "ntriples", "form": "received"}).text
     assert '"0.87"' in stored and '"8.7e-01"' not in stored  # the store's canonical spelling
     assert f'"8.7e-01"^^<{XSD}double>' in received and f'"5"^^<{XSD}long>' in received
     assert triples(received) == triples(AS_SENT, RdfFormat.TURTLE)
-    as_turtle = httpx.get(f"{memory_api.url}/events", params={"format": "turtle", "form": "received"}).text
+    as_turtle = memory_api.get("/events", params={"format": "turtle", "form": "received"}).text
     assert triples(as_turtle, RdfFormat.TURTLE) == triples(received)
-    httpx.post(f"{memory_api.url}/ttl/delete_all", json={})
-    assert httpx.get(f"{memory_api.url}/events", params={"format": "ntriples", "form": "received"}).text == ""
+    memory_api.post("/ttl/delete_all", json={})
+    assert memory_api.get("/events", params={"format": "ntriples", "form": "received"}).text == ""
 
 
-def test_deep_verification_finds_edited_content(disk_api: LiveServer, tmp_path: Path) -> None:
-    lobby().publish_all(disk_api.url)
-    assert httpx.get(f"{disk_api.url}/ledger/verify", params={"deep": "true"}).json() == {
+def test_deep_verification_finds_edited_content(disk_api: InProcess, tmp_path: Path) -> None:
+    lobby().publish_all(disk_api.client)
+    assert disk_api.get("/ledger/verify", params={"deep": "true"}).json() == {
         "valid": True,
-        "receipts": httpx.get(f"{disk_api.url}/ledger").json()["total"],
+        "receipts": disk_api.get("/ledger").json()["total"],
         "deep": True,
     }
-    with sqlite3.connect(tmp_path / "ledger.sqlite3") as journal:
+    with sqlite3.connect(tmp_path / "journal.sqlite3") as journal:
         rows = journal.execute("SELECT sequence, content FROM receipts WHERE content != x'' ORDER BY sequence")
         sequence, blob = next((number, blob) for number, blob in rows if b"Maria" in zlib.decompress(blob))
         edited = zlib.decompress(blob).replace(b"Maria", b"Marta")
         journal.execute("UPDATE receipts SET content = ? WHERE sequence = ?", (zlib.compress(edited), sequence))
-    shallow = httpx.get(f"{disk_api.url}/ledger/verify").json()
-    deep = httpx.get(f"{disk_api.url}/ledger/verify", params={"deep": "true"}).json()
+    shallow = disk_api.get("/ledger/verify").json()
+    deep = disk_api.get("/ledger/verify", params={"deep": "true"}).json()
     assert shallow["valid"] is True  # the receipts themselves are intact
     assert (deep["valid"], deep["first_broken"]["sequence"], deep["first_broken"]["reason"]) == (
         False,
@@ -95,6 +95,7 @@ def test_deep_verification_finds_edited_content(disk_api: LiveServer, tmp_path: 
     )
 
 
+@pytest.mark.processes
 def test_segb_rebuild_makes_the_same_store_again_from_the_journal(tmp_path: Path) -> None:
     loaded = segb("import", "--data-dir", str(tmp_path), str(FIXTURES / "sample_two_robots.ttl"))
     assert loaded.returncode == 0, loaded.stderr
@@ -106,26 +107,20 @@ def test_segb_rebuild_makes_the_same_store_again_from_the_journal(tmp_path: Path
     assert triples(after) == triples(before) and len(triples(before)) == 799
 
 
-def test_a_hostile_user_in_a_batch_of_honest_robots_fails_alone(disk_api: LiveServer) -> None:
+def test_a_hostile_user_in_a_batch_of_honest_robots_fails_alone(disk_api: InProcess) -> None:
     """Posts that share a journal transaction: one robot's bad `user` (a lone surrogate, legal JSON) is refused
     with 422 naming the field; the others all get 201 and their receipts."""
     honest_turtle = '<https://e.org/robot{0}> <https://e.org/says> "hello {1}" .'
     hostile = '{"ttl_content": "<https://e.org/u> <https://e.org/p> \\"x\\" .", "user": "\\ud800"}'
 
     def honest(robot: int) -> list[int]:
-        with httpx.Client(base_url=disk_api.url, timeout=60) as client:
-            return [
-                client.post(
-                    "/ttl", json={"ttl_content": honest_turtle.format(robot, n), "user": f"r{robot}"}
-                ).status_code
-                for n in range(20)
-            ]
+        return [
+            disk_api.post("/ttl", json={"ttl_content": honest_turtle.format(robot, n), "user": f"r{robot}"}).status_code
+            for n in range(20)
+        ]
 
     def attacker() -> list[httpx.Response]:
-        with httpx.Client(base_url=disk_api.url, timeout=60) as client:
-            return [
-                client.post("/ttl", content=hostile, headers={"Content-Type": "application/json"}) for _ in range(40)
-            ]
+        return [disk_api.post("/ttl", content=hostile, headers={"Content-Type": "application/json"}) for _ in range(40)]
 
     with ThreadPoolExecutor(max_workers=13) as pool:
         honest_runs = [pool.submit(honest, robot) for robot in range(12)]
@@ -135,10 +130,11 @@ def test_a_hostile_user_in_a_batch_of_honest_robots_fails_alone(disk_api: LiveSe
     assert statuses == [201] * 240
     assert {answer.status_code for answer in refusals} == {422}
     assert all("'user'" in answer.json()["detail"] and answer.headers["x-request-id"] for answer in refusals)
-    ledger = httpx.get(f"{disk_api.url}/ledger", params={"limit": 1000}).json()
+    ledger = disk_api.get("/ledger", params={"limit": 1000}).json()
     assert ledger["total"] == 240 and {r["claimed_user"] for r in ledger["receipts"]} == {f"r{n}" for n in range(12)}
 
 
+@pytest.mark.processes
 def test_scoped_tokens_write_only_about_their_namespaces_with_the_pypi_client(tmp_path: Path) -> None:
     secret = "s" * 40
     tiago = mint_token(
@@ -147,15 +143,15 @@ def test_scoped_tokens_write_only_about_their_namespaces_with_the_pypi_client(tm
         roles=["logger"],
         scopes=["https://example.org/segb/robots/tiago/", "https://example.org/segb/people/"],
     ).token
-    with LiveServer(create_app(make_settings(secret_key=secret))) as server:
-        own = SEGBPublisher(base_url=server.url, token=tiago).publish_turtle(
+    with InProcess(create_app(make_settings(secret_key=secret))) as server:
+        own = publisher_for(server.client, token=tiago).publish_turtle(
             '<https://example.org/segb/robots/tiago/v1/robot_tiago> <http://schema.org/name> "TIAGo" .\n'
             '<https://example.org/segb/people/maria> <http://xmlns.com/foaf/0.1/firstName> "Maria" .\n'
             "<https://example.org/segb/robots/tiago/v1/a1> <https://e.org/about> [ <https://e.org/p> 1 ] ."
         )
         assert own["triples_new"] == 4  # its own namespace, the shared one, and its blank nodes
-        forged = httpx.post(
-            f"{server.url}/ttl",
+        forged = server.post(
+            "/ttl",
             json={
                 "ttl_content": "<https://example.org/segb/robots/tiago/v1/x> <https://e.org/p> 1 .\n"
                 '<https://example.org/segb/robots/ari/v1/robot_ari> <http://schema.org/name> "evil" .'
@@ -165,12 +161,12 @@ def test_scoped_tokens_write_only_about_their_namespaces_with_the_pypi_client(tm
         assert forged.status_code == 403
         assert "<https://example.org/segb/robots/ari/v1/robot_ari>" in forged.json()["detail"]
         with pytest.raises(RuntimeError, match="403"):
-            SEGBPublisher(base_url=server.url, token=tiago).publish_turtle(
+            publisher_for(server.client, token=tiago).publish_turtle(
                 '<https://example.org/segb/robots/ari/v1/robot_ari> <http://schema.org/name> "evil" .'
             )
-        whoami = httpx.get(f"{server.url}/auth/whoami", headers={"Authorization": f"Bearer {tiago}"}).json()
+        whoami = server.get("/auth/whoami", headers={"Authorization": f"Bearer {tiago}"}).json()
         assert whoami["scopes"] == ["https://example.org/segb/robots/tiago/", "https://example.org/segb/people/"]
-        ledger = httpx.get(f"{server.url}/ledger", headers={"Authorization": f"Bearer {tiago}"})
+        ledger = server.get("/ledger", headers={"Authorization": f"Bearer {tiago}"})
         assert ledger.status_code == 403  # a logger token does not read
     minted = subprocess.run(
         [*segb_command(), "token", "--username", "ari", "--role", "logger", "--scope", "https://e.org/ari/", "--json"],

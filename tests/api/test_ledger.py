@@ -1,5 +1,6 @@
-"""The ingest ledger over real HTTP: receipts match what was posted, the chain verifies, tampering with the
-SQLite file is caught at the first broken receipt, the chain survives a restart and concurrent posts."""
+"""The ingest ledger through the whole app, served in process: receipts match what was posted, the chain verifies,
+tampering with the SQLite file is caught at the first broken receipt, the chain survives a restart and concurrent
+posts."""
 
 from __future__ import annotations
 
@@ -11,14 +12,12 @@ from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-import httpx
 import pytest
-from semantic_log_generator import SEGBPublisher
 
 from segb_server.backend.api.app import create_app
 from segb_server.backend.auth import mint_token
 from tests.conftest import make_settings
-from tests.support.live_server import LiveServer
+from tests.support.in_process import InProcess, Server, http, publisher_for
 from tests.support.scenarios import lobby
 
 GENESIS = "0" * 64
@@ -32,26 +31,26 @@ def turtle(index: int) -> str:
     )
 
 
-def post_turtle(url: str, text: str, *, user: str | None = None, token: str | None = None) -> dict:
+def post_turtle(server: Server, text: str, *, user: str | None = None, token: str | None = None) -> dict:
     headers = {"Content-Type": "text/turtle"}
     if token:
         headers["Authorization"] = f"Bearer {token}"
     params = {"user": user} if user else None
-    answer = httpx.post(f"{url}/ttl", content=text.encode("utf-8"), headers=headers, params=params, timeout=60)
+    answer = http(server, "POST", "/ttl", content=text.encode("utf-8"), headers=headers, params=params)
     assert answer.status_code == 201, answer.text
     return answer.json()
 
 
-def all_receipts(url: str, token: str | None = None) -> list[dict]:
+def all_receipts(server: Server, token: str | None = None) -> list[dict]:
     """Every receipt, oldest first."""
     headers = {"Authorization": f"Bearer {token}"} if token else None
-    answer = httpx.get(f"{url}/ledger", params={"limit": 1000}, headers=headers, timeout=60)
+    answer = http(server, "GET", "/ledger", params={"limit": 1000}, headers=headers)
     assert answer.status_code == 200, answer.text
     return list(reversed(answer.json()["receipts"]))
 
 
-def verify(url: str) -> dict:
-    answer = httpx.get(f"{url}/ledger/verify", timeout=60)
+def verify(server: Server) -> dict:
+    answer = http(server, "GET", "/ledger/verify")
     assert answer.status_code == 200, answer.text
     return answer.json()
 
@@ -72,15 +71,15 @@ def assert_chained(receipts: list[dict]) -> None:
 
 
 @pytest.fixture
-def disk_api(tmp_path: Path) -> Iterator[LiveServer]:
-    """An API that opens its own on-disk store, so the ledger is the file `<data_dir>/ledger.sqlite3`."""
-    with LiveServer(create_app(make_settings(store="oxigraph", data_dir=tmp_path))) as server:
+def disk_api(tmp_path: Path) -> Iterator[InProcess]:
+    """An API that opens its own on-disk store, so the journal is the file `<data_dir>/journal.sqlite3`."""
+    with InProcess(create_app(make_settings(store="oxigraph", data_dir=tmp_path))) as server:
         yield server
 
 
-def test_receipts_match_a_mixed_run_of_posts(memory_api: LiveServer) -> None:
+def test_receipts_match_a_mixed_run_of_posts(memory_api: InProcess) -> None:
     scenario = lobby()
-    publishers = {name: SEGBPublisher(base_url=memory_api.url, default_user=name) for name in scenario.loggers}
+    publishers = {name: publisher_for(memory_api.client, name) for name in scenario.loggers}
     sent: list[tuple[str, dict]] = []  # (SHA-256 of the Turtle sent, response), in posting order
 
     def publish(robot: str) -> None:
@@ -90,21 +89,20 @@ def test_receipts_match_a_mixed_run_of_posts(memory_api: LiveServer) -> None:
 
     scenario.run_steps(publish)
     raw = turtle(1)
-    first_raw = post_turtle(memory_api.url, raw, user="maria")
-    again = post_turtle(memory_api.url, raw)
+    first_raw = post_turtle(memory_api.client, raw, user="maria")
+    again = post_turtle(memory_api.client, raw)
     assert again["triples_new"] == 0
-    zipped = httpx.post(
-        f"{memory_api.url}/ttl",
+    zipped = memory_api.post(
+        "/ttl",
         content=gzip.compress(turtle(2).encode("utf-8")),
         headers={"Content-Type": "text/turtle", "Content-Encoding": "gzip"},
-        timeout=60,
     )
     assert zipped.status_code == 201
     sent += [(hashlib.sha256(raw.encode()).hexdigest(), first_raw), (hashlib.sha256(raw.encode()).hexdigest(), again)]
     sent.append((hashlib.sha256(turtle(2).encode()).hexdigest(), zipped.json()))  # hashed after gzip decoding
     cleared = publishers["ari"].delete_all_ttls()
 
-    receipts = all_receipts(memory_api.url)
+    receipts = all_receipts(memory_api.client)
     assert len(receipts) == len(sent) + 1
     for receipt, (payload_sha256, response) in zip(receipts, sent, strict=False):
         assert receipt["action"] == "ingest"
@@ -128,42 +126,42 @@ def test_receipts_match_a_mixed_run_of_posts(memory_api: LiveServer) -> None:
     assert deletion["claimed_user"] == "ari"
     assert deletion["payload_sha256"] == hashlib.sha256(b"").hexdigest()
     assert_chained(receipts)
-    assert verify(memory_api.url) == {"valid": True, "receipts": len(receipts)}
+    assert verify(memory_api.client) == {"valid": True, "receipts": len(receipts)}
 
 
-def test_ledger_pages_newest_first_and_checks_its_parameters(memory_api: LiveServer) -> None:
+def test_ledger_pages_newest_first_and_checks_its_parameters(memory_api: InProcess) -> None:
     for index in range(5):
-        post_turtle(memory_api.url, turtle(index))
-    page = httpx.get(f"{memory_api.url}/ledger", params={"limit": 2, "offset": 1}).json()
+        post_turtle(memory_api.client, turtle(index))
+    page = memory_api.get("/ledger", params={"limit": 2, "offset": 1}).json()
     assert [receipt["sequence"] for receipt in page["receipts"]] == [4, 3]
     assert (page["total"], page["limit"], page["offset"]) == (5, 2, 1)
-    assert httpx.get(f"{memory_api.url}/ledger").json()["limit"] == 100
+    assert memory_api.get("/ledger").json()["limit"] == 100
     for bad in ({"limit": 0}, {"limit": 1001}, {"offset": -1}):
-        assert httpx.get(f"{memory_api.url}/ledger", params=bad).status_code == 422
+        assert memory_api.get("/ledger", params=bad).status_code == 422
 
 
-def test_an_empty_ledger_verifies(memory_api: LiveServer) -> None:
-    assert verify(memory_api.url) == {"valid": True, "receipts": 0}
-    assert httpx.get(f"{memory_api.url}/ledger").json() == {"receipts": [], "total": 0, "limit": 100, "offset": 0}
+def test_an_empty_ledger_verifies(memory_api: InProcess) -> None:
+    assert verify(memory_api.client) == {"valid": True, "receipts": 0}
+    assert memory_api.get("/ledger").json() == {"receipts": [], "total": 0, "limit": 100, "offset": 0}
 
 
 def test_receipts_name_the_authenticated_user_and_need_the_auditor_role(memory_store) -> None:  # type: ignore[no-untyped-def]
     logger = mint_token(SECRET, username="ari-bot", roles=["logger"]).token
     auditor = mint_token(SECRET, username="inspector", roles=["auditor"]).token
-    with LiveServer(create_app(make_settings(secret_key=SECRET), store=memory_store)) as server:
-        post_turtle(server.url, turtle(1), user="somebody-else", token=logger)
-        assert httpx.get(f"{server.url}/ledger").status_code == 401
+    with InProcess(create_app(make_settings(secret_key=SECRET), store=memory_store)) as server:
+        post_turtle(server.client, turtle(1), user="somebody-else", token=logger)
+        assert server.get("/ledger").status_code == 401
         for path in ("/ledger", "/ledger/verify"):
-            assert httpx.get(f"{server.url}{path}", headers={"Authorization": f"Bearer {logger}"}).status_code == 403
-        (receipt,) = all_receipts(server.url, token=auditor)
+            assert server.get(f"{path}", headers={"Authorization": f"Bearer {logger}"}).status_code == 403
+        (receipt,) = all_receipts(server.client, token=auditor)
     assert (receipt["user"], receipt["claimed_user"]) == ("ari-bot", "somebody-else")
 
 
 def test_a_memory_server_writes_no_ledger_file(tmp_path: Path) -> None:
-    with LiveServer(create_app(make_settings(store="memory", data_dir=tmp_path))) as server:
-        post_turtle(server.url, turtle(1))
-        assert len(all_receipts(server.url)) == 1
-    assert not (tmp_path / "ledger.sqlite3").exists()
+    with InProcess(create_app(make_settings(store="memory", data_dir=tmp_path))) as server:
+        post_turtle(server.client, turtle(1))
+        assert len(all_receipts(server.client)) == 1
+    assert not (tmp_path / "journal.sqlite3").exists()
 
 
 def tamper(ledger_file: Path, statement: str) -> None:
@@ -172,42 +170,42 @@ def tamper(ledger_file: Path, statement: str) -> None:
         assert connection.execute(statement).rowcount == 1
 
 
-def test_an_edited_receipt_is_a_hash_mismatch(disk_api: LiveServer, tmp_path: Path) -> None:
-    log_ids = [post_turtle(disk_api.url, turtle(index))["log_id"] for index in range(5)]
-    assert verify(disk_api.url) == {"valid": True, "receipts": 5}
+def test_an_edited_receipt_is_a_hash_mismatch(disk_api: InProcess, tmp_path: Path) -> None:
+    log_ids = [post_turtle(disk_api.client, turtle(index))["log_id"] for index in range(5)]
+    assert verify(disk_api.client) == {"valid": True, "receipts": 5}
 
-    tamper(tmp_path / "ledger.sqlite3", "UPDATE receipts SET triples_new = triples_new + 1 WHERE sequence = 3")
+    tamper(tmp_path / "journal.sqlite3", "UPDATE receipts SET triples_new = triples_new + 1 WHERE sequence = 3")
 
-    assert verify(disk_api.url) == {
+    assert verify(disk_api.client) == {
         "valid": False,
         "receipts": 5,
         "first_broken": {"sequence": 3, "log_id": log_ids[2], "reason": "hash mismatch"},
     }
 
 
-def test_an_edit_with_a_recomputed_hash_breaks_the_next_link(disk_api: LiveServer, tmp_path: Path) -> None:
-    log_ids = [post_turtle(disk_api.url, turtle(index))["log_id"] for index in range(4)]
-    forged = {**all_receipts(disk_api.url)[1], "triples_new": 0}
+def test_an_edit_with_a_recomputed_hash_breaks_the_next_link(disk_api: InProcess, tmp_path: Path) -> None:
+    log_ids = [post_turtle(disk_api.client, turtle(index))["log_id"] for index in range(4)]
+    forged = {**all_receipts(disk_api.client)[1], "triples_new": 0}
     forged["receipt_hash"] = expected_hash(forged)
 
     tamper(
-        tmp_path / "ledger.sqlite3",
+        tmp_path / "journal.sqlite3",
         f"UPDATE receipts SET triples_new = 0, receipt_hash = '{forged['receipt_hash']}' WHERE sequence = 2",
     )
 
-    assert verify(disk_api.url)["first_broken"] == {
+    assert verify(disk_api.client)["first_broken"] == {
         "sequence": 3,
         "log_id": log_ids[2],
         "reason": "previous hash does not match",
     }
 
 
-def test_a_deleted_receipt_is_a_sequence_gap(disk_api: LiveServer, tmp_path: Path) -> None:
-    log_ids = [post_turtle(disk_api.url, turtle(index))["log_id"] for index in range(5)]
+def test_a_deleted_receipt_is_a_sequence_gap(disk_api: InProcess, tmp_path: Path) -> None:
+    log_ids = [post_turtle(disk_api.client, turtle(index))["log_id"] for index in range(5)]
 
-    tamper(tmp_path / "ledger.sqlite3", "DELETE FROM receipts WHERE sequence = 3")
+    tamper(tmp_path / "journal.sqlite3", "DELETE FROM receipts WHERE sequence = 3")
 
-    assert verify(disk_api.url) == {
+    assert verify(disk_api.client) == {
         "valid": False,
         "receipts": 4,
         "first_broken": {"sequence": 4, "log_id": log_ids[3], "reason": "sequence gap"},
@@ -216,17 +214,17 @@ def test_a_deleted_receipt_is_a_sequence_gap(disk_api: LiveServer, tmp_path: Pat
 
 def test_the_chain_survives_a_restart_and_keeps_growing(tmp_path: Path) -> None:
     settings = make_settings(store="oxigraph", data_dir=tmp_path)
-    with LiveServer(create_app(settings)) as first:
+    with InProcess(create_app(settings)) as first:
         for index in range(3):
-            post_turtle(first.url, turtle(index))
-        before = all_receipts(first.url)
+            post_turtle(first.client, turtle(index))
+        before = all_receipts(first.client)
 
-    with LiveServer(create_app(settings)) as second:
-        assert all_receipts(second.url) == before
-        republished = post_turtle(second.url, turtle(0))  # the store kept its triples too
-        post_turtle(second.url, turtle(3))
-        after = all_receipts(second.url)
-        verified = verify(second.url)
+    with InProcess(create_app(settings)) as second:
+        assert all_receipts(second.client) == before
+        republished = post_turtle(second.client, turtle(0))  # the store kept its triples too
+        post_turtle(second.client, turtle(3))
+        after = all_receipts(second.client)
+        verified = verify(second.client)
 
     assert republished["triples_new"] == 0
     assert after[:3] == before
@@ -236,11 +234,11 @@ def test_the_chain_survives_a_restart_and_keeps_growing(tmp_path: Path) -> None:
     assert verified == {"valid": True, "receipts": 5}
 
 
-def test_concurrent_posts_keep_one_chain(disk_api: LiveServer) -> None:
+def test_concurrent_posts_keep_one_chain(disk_api: InProcess) -> None:
     with ThreadPoolExecutor(max_workers=8) as pool:
-        responses = list(pool.map(lambda index: post_turtle(disk_api.url, turtle(index)), range(32)))
+        responses = list(pool.map(lambda index: post_turtle(disk_api.client, turtle(index)), range(32)))
 
-    receipts = all_receipts(disk_api.url)
+    receipts = all_receipts(disk_api.client)
     assert sorted(receipt["log_id"] for receipt in receipts) == sorted(response["log_id"] for response in responses)
     assert_chained(receipts)
-    assert verify(disk_api.url) == {"valid": True, "receipts": 32}
+    assert verify(disk_api.client) == {"valid": True, "receipts": 32}

@@ -20,6 +20,8 @@ from tests.support.net import free_port
 CROSS_JOIN_COUNT = "SELECT (COUNT(*) AS ?n) WHERE { ?a ?b ?c . ?d ?e ?f . ?g ?h ?i }"
 CROSS_JOIN_SORTED = "SELECT ?a ?d ?g WHERE { ?a ?b ?c . ?d ?e ?f . ?g ?h ?i } ORDER BY ?c ?f ?i"
 TIMEOUT = 3
+
+pytestmark = pytest.mark.processes  # a server process of its own, to watch its query workers
 MEMORY = 300 * 1024 * 1024
 
 

@@ -7,39 +7,51 @@ from __future__ import annotations
 
 import json
 import threading
-import time
 
 import httpx
+import pytest
 
-from bench.workloads import live_posts
 from tests.support.live_server import LiveServer
+from tests.support.robot_posts import live_posts
 from tests.support.settle import settle
 
 POSTS = 40
 
 
-def test_the_keys_a_post_touches_do_not_grow_with_the_log(memory_api: LiveServer) -> None:
+@pytest.mark.slow  # forty posts, each followed on the live stream
+def test_the_keys_a_post_touches_do_not_grow_with_the_log(live_api: LiveServer) -> None:
     touched: list[tuple[str, int]] = []  # (report, keys) per change event
+    heard = threading.Condition()  # notified at each id the stream gives, and when it opens
+    positions: list[int] = []
+    opened = threading.Event()
     client = httpx.Client(timeout=60)
 
     def listen() -> None:
         try:
-            with client.stream("GET", f"{memory_api.url}/reports/stream") as stream:
+            with client.stream("GET", f"{live_api.url}/reports/stream") as stream:
+                opened.set()  # the stream's start is read before its headers go out: later changes are sent
                 for line in stream.iter_lines():
                     if line.startswith("data:") and '"units"' in line:
                         change = json.loads(line.removeprefix("data:"))
                         touched.append((change["report"], len(change["units"])))
+                    elif line.startswith("id:"):
+                        with heard:
+                            positions.append(int(line.removeprefix("id:")))
+                            heard.notify_all()
         except httpx.HTTPError:
             return  # closed below, once every post is in
 
     listener = threading.Thread(target=listen, daemon=True)
     listener.start()
-    time.sleep(0.5)
+    assert opened.wait(timeout=30)
     for post in live_posts(POSTS):
-        answer = httpx.post(f"{memory_api.url}/ttl", content=post.payload, headers={"Content-Type": "text/turtle"})
+        answer = live_api.post("/ttl", content=post.payload, headers={"Content-Type": "text/turtle"})
         assert answer.status_code == 201, answer.text
-        settle(memory_api.url)
-        time.sleep(0.3)  # one poll of the stream per post: each event holds one post's keys
+        settle(live_api.url)
+        # Each post's changes are heard before the next post: each event holds one post's keys.
+        included = live_api.get("/reports/conversations", params={"limit": 1}).json()["last_event_id"]
+        with heard:
+            assert heard.wait_for(lambda at=included: bool(positions) and positions[-1] >= at, timeout=30)
     client.close()
     listener.join(timeout=10)
     by_report: dict[str, list[int]] = {}

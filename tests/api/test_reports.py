@@ -13,13 +13,12 @@ from collections.abc import Iterator
 
 import httpx
 import pytest
-from semantic_log_generator import SEGBPublisher
 
 from segb_server.backend.api.app import create_app
 from segb_server.backend.config import PACKAGE_ROOT
 from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.conftest import make_settings, virtuoso_store
-from tests.support.live_server import LiveServer
+from tests.support.in_process import InProcess, publisher_for
 from tests.support.scenarios import Scenario, lobby
 from tests.support.settle import settle
 
@@ -27,7 +26,7 @@ pytestmark = pytest.mark.virtuoso
 
 
 class Published:
-    def __init__(self, scenario: Scenario, servers: dict[str, LiveServer]) -> None:
+    def __init__(self, scenario: Scenario, servers: dict[str, InProcess]) -> None:
         self.scenario = scenario
         self.servers = servers
 
@@ -35,14 +34,12 @@ class Published:
         return str(self.scenario.iris[name])
 
     def get(self, store: str, path: str, **params: object) -> httpx.Response:
-        return httpx.get(f"{self.servers[store].url}{path}", params=params, timeout=60)  # type: ignore[arg-type]
+        return self.servers[store].get(path, params=params)  # type: ignore[arg-type]
 
     def evidence(self, store: str, report: str) -> str:
         """The report's rows beside its query's own answer from the store, for a failure message."""
         text = (PACKAGE_ROOT / "sparql" / "reports" / f"{report}.rq").read_text()
-        evaluated = httpx.post(
-            f"{self.servers[store].url}/sparql", data={"query": text}, headers={"Accept": "text/csv"}, timeout=60
-        ).text
+        evaluated = self.servers[store].post("/sparql", data={"query": text}, headers={"Accept": "text/csv"}).text
         return json.dumps({"rows": self.rows(store, report), "evaluated": evaluated}, indent=1)
 
     def rows(self, store: str, report: str, **params: object) -> list[dict[str, object]]:
@@ -57,12 +54,12 @@ def published(virtuoso, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Pu
         "oxigraph": OxigraphStore("http://amor-segb/events", tmp_path_factory.mktemp("reports") / "oxigraph"),
         "virtuoso": virtuoso_store(virtuoso),
     }
-    servers = {kind: LiveServer(create_app(make_settings(), store=store)) for kind, store in stores.items()}
+    servers = {kind: InProcess(create_app(make_settings(), store=store)) for kind, store in stores.items()}
     for server in servers.values():
         server.__enter__()
     scenario = lobby()
     publishers = {
-        (kind, robot): SEGBPublisher(base_url=server.url, default_user=robot)
+        (kind, robot): publisher_for(server.client, robot)
         for kind, server in servers.items()
         for robot in scenario.loggers
     }
@@ -73,7 +70,7 @@ def published(virtuoso, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Pu
 
     scenario.run_steps(publish_everywhere)
     for server in servers.values():
-        settle(server.url)
+        settle(server.client)
     yield Published(scenario, servers)
     for server in servers.values():
         server.__exit__(None, None, None)
@@ -232,9 +229,7 @@ def test_same_rows_on_both_stores(published: Published) -> None:
 
 def test_csv_has_the_json_columns_and_rows(published: Published) -> None:
     as_json = published.get("oxigraph", "/reports/conversations").json()
-    response = httpx.get(
-        f"{published.servers['oxigraph'].url}/reports/conversations", headers={"Accept": "text/csv"}, timeout=30
-    )
+    response = published.servers["oxigraph"].get("/reports/conversations", headers={"Accept": "text/csv"})
     assert response.headers["content-type"].startswith("text/csv")
     table = list(csv.reader(io.StringIO(response.text)))
     assert table[0] == as_json["columns"]
@@ -298,16 +293,16 @@ def test_a_filter_value_cannot_inject_sparql(published: Published) -> None:
         assert response.json()["rows"] == []
 
 
-def test_reports_follow_every_write_even_when_cached(memory_api: LiveServer) -> None:
+def test_reports_follow_every_write_even_when_cached(memory_api: InProcess) -> None:
     """Report pages are served from rows kept current (and cached): a publish or a delete shows once the views
     have caught up, never a stale page after that."""
     scenario = lobby()
     steps = iter(scenario.steps)
-    publisher = SEGBPublisher(base_url=memory_api.url)
+    publisher = publisher_for(memory_api.client)
 
     def conversations() -> list[str]:
-        settle(memory_api.url)
-        return [row["text"] for row in httpx.get(f"{memory_api.url}/reports/conversations").json()["rows"]]
+        settle(memory_api.client)
+        return [row["text"] for row in memory_api.get("/reports/conversations").json()["rows"]]
 
     for robot, step in steps:
         step()
@@ -320,5 +315,5 @@ def test_reports_follow_every_write_even_when_cached(memory_api: LiveServer) -> 
         step()
         scenario.loggers[robot].publish(publisher)
     assert "Thanks!" in conversations()
-    httpx.post(f"{memory_api.url}/ttl/delete_all", json={"user": "admin"})
+    memory_api.post("/ttl/delete_all", json={"user": "admin"})
     assert conversations() == []

@@ -22,6 +22,7 @@ from segb_server.backend.services.container import REPORTS_FILE
 from segb_server.backend.store.base import Store
 from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.conftest import make_settings
+from tests.support.in_process import InProcess, Server, http
 from tests.support.live_server import LiveServer
 from tests.support.settle import settle
 from tests.support.streams import first_event
@@ -83,53 +84,65 @@ def people(count: int, start: int = 0) -> str:
     return "\n".join(lines)
 
 
-@pytest.fixture
-def server(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> Iterator[str]:
-    caplog.set_level(logging.INFO, logger="segb.reports")  # before the views are built
+def with_added_reports(tmp_path: Path) -> Path:
+    """The shipped queries and this module's reports, in a folder of their own."""
     sparql = tmp_path / "sparql"
     shutil.copytree(PACKAGE_ROOT / "sparql", sparql)
     (sparql / "reports" / "named-agents.rq").write_text(NAMED)
     (sparql / "reports" / "unnamed-agents.rq").write_text(UNNAMED)
     (sparql / "reports" / "agents-by-friend.rq").write_text(BY_FRIEND)
     (sparql / "reports" / "friends-of-001.rq").write_text(FRIENDS_OF_001)
-    with LiveServer(create_app(make_settings(sparql_dir=sparql))) as live:
+    return sparql
+
+
+@pytest.fixture
+def server(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> Iterator[httpx.Client]:
+    caplog.set_level(logging.INFO, logger="segb.reports")  # before the views are built
+    with InProcess(create_app(make_settings(sparql_dir=with_added_reports(tmp_path)))) as served:
+        yield served.client
+
+
+@pytest.fixture
+def live_server(tmp_path: Path) -> Iterator[str]:
+    """Over real HTTP, for reading a stream with a time limit."""
+    with LiveServer(create_app(make_settings(sparql_dir=with_added_reports(tmp_path)))) as live:
         yield live.url
 
 
-def post(url: str, turtle: str) -> None:
-    answer = httpx.post(f"{url}/ttl", json={"ttl_content": turtle, "user": "test"}, timeout=30)
+def post(server: Server, turtle: str) -> None:
+    answer = http(server, "POST", "/ttl", json={"ttl_content": turtle, "user": "test"})
     assert answer.status_code == 201, answer.text
 
 
-def test_a_keyed_report_is_kept_as_rows_and_follows_new_posts(server: str) -> None:
+def test_a_keyed_report_is_kept_as_rows_and_follows_new_posts(server: httpx.Client) -> None:
     post(server, people(10))
     settle(server)
-    body = httpx.get(f"{server}/reports/named-agents", params={"limit": 3}, timeout=30).json()
+    body = server.get("/reports/named-agents", params={"limit": 3}).json()
     assert body["served_from"] == "rows"
     assert [row["name"] for row in body["rows"]] == ["P000", "P002", "P004"]
-    rest = httpx.get(f"{server}/reports/named-agents", params={"limit": 3, "after": body["next"]}, timeout=30).json()
+    rest = server.get("/reports/named-agents", params={"limit": 3, "after": body["next"]}).json()
     assert [row["name"] for row in rest["rows"]] == ["P006", "P008"]
     assert rest["has_more"] is False
 
     post(server, people(12, start=10))
     settle(server)
-    names = [row["name"] for row in httpx.get(f"{server}/reports/named-agents", timeout=30).json()["rows"]]
+    names = [row["name"] for row in server.get("/reports/named-agents").json()["rows"]]
     assert names == ["P000", "P002", "P004", "P006", "P008", "P010"]
 
 
-def test_a_report_the_rows_cannot_follow_is_evaluated_in_full(server: str) -> None:
+def test_a_report_the_rows_cannot_follow_is_evaluated_in_full(server: httpx.Client) -> None:
     post(server, people(6))
     settle(server)
-    body = httpx.get(f"{server}/reports/unnamed-agents", timeout=30).json()
+    body = server.get("/reports/unnamed-agents").json()
     assert body["served_from"] == "query"
     assert body["next"] is None
     assert [row["agent"] for row in body["rows"]] == [f"https://example.org/p/{i:03d}" for i in (1, 3, 5)]
-    refused = httpx.get(f"{server}/reports/unnamed-agents", params={"after": body["rows"][0]["agent"]}, timeout=30)
+    refused = server.get("/reports/unnamed-agents", params={"after": body["rows"][0]["agent"]})
     assert refused.status_code == 422
     assert "after" in refused.json()["detail"] and "offset" in refused.json()["detail"]
 
 
-def test_a_filter_through_exists_keeps_the_values_its_body_narrows_to(server: str) -> None:
+def test_a_filter_through_exists_keeps_the_values_its_body_narrows_to(server: httpx.Client) -> None:
     """P000 knows P001, a person; P002 knows P003, an agent but not a person: only P000 knows a person."""
     person, agent = "http://xmlns.com/foaf/0.1/Person", "http://www.w3.org/ns/prov#Agent"
     knows = "http://xmlns.com/foaf/0.1/knows"
@@ -143,28 +156,28 @@ def test_a_filter_through_exists_keeps_the_values_its_body_narrows_to(server: st
     )
     settle(server)
     for friend, expected in (("001", ["P000"]), ("003", [])):
-        body = httpx.get(
-            f"{server}/reports/agents-by-friend", params={"friend": f"https://example.org/p/{friend}"}, timeout=30
-        ).json()
+        body = server.get("/reports/agents-by-friend", params={"friend": f"https://example.org/p/{friend}"}).json()
         assert body["served_from"] == "rows"
         assert [row["name"] for row in body["rows"]] == expected, friend
 
 
-def test_a_preset_is_served_from_its_base_rows_kept_once(server: str, caplog: pytest.LogCaptureFixture) -> None:
+def test_a_preset_is_served_from_its_base_rows_kept_once(
+    server: httpx.Client, caplog: pytest.LogCaptureFixture
+) -> None:
     person, knows = "http://xmlns.com/foaf/0.1/Person", "http://xmlns.com/foaf/0.1/knows"
     post(server, people(6))
     post(server, f"<https://example.org/p/000> <{knows}> <https://example.org/p/001> .")
     post(server, f"<https://example.org/p/001> a <{person}> .")
     settle(server)
-    preset = httpx.get(f"{server}/reports/friends-of-001", timeout=30).json()
+    preset = server.get("/reports/friends-of-001").json()
     assert preset["served_from"] == "rows"
     assert [row["name"] for row in preset["rows"]] == ["P000"]
 
     post(server, f"<https://example.org/p/004> <{knows}> <https://example.org/p/001> .")
     settle(server)
-    names = [row["name"] for row in httpx.get(f"{server}/reports/friends-of-001", timeout=30).json()["rows"]]
+    names = [row["name"] for row in server.get("/reports/friends-of-001").json()["rows"]]
     assert names == ["P000", "P004"]
-    everyone = httpx.get(f"{server}/reports/agents-by-friend", timeout=30).json()
+    everyone = server.get("/reports/agents-by-friend").json()
     assert [row["name"] for row in everyone["rows"]] == ["P000", "P002", "P004"]
     logged = [*caplog.get_records("setup"), *caplog.records]  # the views are built as the server starts
     built = [record.getMessage() for record in logged if " built: " in record.getMessage()]
@@ -172,7 +185,8 @@ def test_a_preset_is_served_from_its_base_rows_kept_once(server: str, caplog: py
     assert not any("reports/friends-of-001" in message for message in built), built
 
 
-def test_a_preset_stream_tells_the_changes_of_the_rows_it_shares(server: str) -> None:
+def test_a_preset_stream_tells_the_changes_of_the_rows_it_shares(live_server: str) -> None:
+    server = live_server
     knows = "http://xmlns.com/foaf/0.1/knows"
     post(server, people(2))
     post(server, f"<https://example.org/p/000> <{knows}> <https://example.org/p/001> .")
@@ -193,18 +207,18 @@ def test_the_rows_of_a_report_no_longer_kept_are_dropped_at_the_next_start(tmp_p
     store = OxigraphStore("http://amor-segb/events", tmp_path / "oxigraph")
     settings = make_settings(store="oxigraph", data_dir=tmp_path / "data", sparql_dir=sparql)
     try:
-        with LiveServer(create_app(settings, store=store)) as live:
-            post(live.url, people(6))
-            settle(live.url)
+        with InProcess(create_app(settings, store=store)) as live:
+            post(live.client, people(6))
+            settle(live.client)
         tables, states = stored_reports(settings.data_dir / REPORTS_FILE)
         assert {"report_reports_named_agents", "report_reports_friends_of_001"} <= tables
         assert {"reports/named-agents", "reports/friends-of-001"} <= states
 
         (sparql / "reports" / "named-agents.rq").unlink()
         (sparql / "reports" / "friends-of-001.rq").write_text(FRIENDS_OF_001)  # now a preset: its base's rows
-        with LiveServer(create_app(settings, store=store)) as live:
-            settle(live.url)
-            body = httpx.get(f"{live.url}/reports/friends-of-001", timeout=30).json()
+        with InProcess(create_app(settings, store=store)) as live:
+            settle(live.client)
+            body = live.get("/reports/friends-of-001").json()
             assert body["served_from"] == "rows"
         tables, states = stored_reports(settings.data_dir / REPORTS_FILE)
         assert not any(
@@ -237,13 +251,11 @@ def test_every_documented_page_of_a_report_evaluated_in_full_answers_on_every_st
     shutil.copytree(PACKAGE_ROOT / "sparql", sparql)
     (sparql / "reports" / "unnamed-agents.rq").write_text(UNNAMED)
     agents = [f"https://example.org/agent/{i:05d}" for i in range(12_500)]
-    with LiveServer(create_app(make_settings(sparql_dir=sparql), store=store)) as live:
-        post(live.url, "\n".join(f"<{agent}> a <http://www.w3.org/ns/prov#Agent> ." for agent in agents))
-        settle(live.url)
+    with InProcess(create_app(make_settings(sparql_dir=sparql), store=store)) as live:
+        post(live.client, "\n".join(f"<{agent}> a <http://www.w3.org/ns/prov#Agent> ." for agent in agents))
+        settle(live.client)
         for limit, offset in ((10_000, 0), (10_000, 1), (10_000, 10_000), (100, 12_350), (100, 12_400)):
-            answer = httpx.get(
-                f"{live.url}/reports/unnamed-agents", params={"limit": limit, "offset": offset}, timeout=60
-            )
+            answer = live.get("/reports/unnamed-agents", params={"limit": limit, "offset": offset})
             assert answer.status_code == 200, (limit, offset, answer.text[:300])
             body = answer.json()
             assert body["served_from"] == "query"

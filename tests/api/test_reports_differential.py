@@ -25,27 +25,29 @@ from segb_server.backend.store.oxigraph import OxigraphStore
 from segb_server.backend.store.terms import bind_values
 from tests.conftest import STORE_KINDS, make_settings, virtuoso_store
 from tests.support.histories import EX, HUMANS, ROBOTS, History
-from tests.support.live_server import LiveServer
+from tests.support.in_process import InProcess, Server, http
 from tests.support.settle import settle
 
 CATALOG = Catalog(PACKAGE_ROOT / "sparql")
 REPORTS = [query for query in CATALOG.under("reports")]
 
 
-def full_evaluation(url: str, text: str) -> list[dict[str, object]]:
-    answer = httpx.post(f"{url}/sparql", data={"query": text}, headers={"Accept": "application/sparql-results+json"})
+def full_evaluation(server: Server, text: str) -> list[dict[str, object]]:
+    answer = http(
+        server, "POST", "/sparql", data={"query": text}, headers={"Accept": "application/sparql-results+json"}
+    )
     assert answer.status_code == 200, answer.text
     solutions = parse_query_results(answer.content, QueryResultsFormat.JSON)
     names = [variable.value for variable in solutions.variables]  # type: ignore[union-attr]
     return [{name: json_value(solution[name]) for name in names} for solution in solutions]  # type: ignore[union-attr]
 
 
-def report_rows(url: str, name: str, params: dict[str, str], page: int) -> list[dict[str, object]]:
+def report_rows(server: Server, name: str, params: dict[str, str], page: int) -> list[dict[str, object]]:
     rows: list[dict[str, object]] = []
     after: str | None = None
     while True:
         query = {**params, "limit": page, **({"after": after} if after else {})}
-        answer = httpx.get(f"{url}/reports/{name}", params=query, timeout=60)
+        answer = http(server, "GET", f"/reports/{name}", params=query)
         assert answer.status_code == 200, answer.text
         body = answer.json()
         rows += body["rows"]
@@ -75,30 +77,28 @@ def bound_text(name: str, params: dict[str, str]) -> str:
 
 
 @pytest.fixture(params=STORE_KINDS)
-def server(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[str]:
+def server(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[httpx.Client]:
     if request.param == "virtuoso":
         store: Store = virtuoso_store(request.getfixturevalue("virtuoso"))
     else:
         store = OxigraphStore("http://amor-segb/events", tmp_path / "oxigraph")
-    with LiveServer(create_app(make_settings(store=request.param, data_dir=tmp_path), store=store)) as live:
-        yield live.url
+    with InProcess(create_app(make_settings(store=request.param, data_dir=tmp_path), store=store)) as live:
+        yield live.client
     if request.param == "virtuoso":
         store.clear()
     store.close()
 
 
-@pytest.mark.parametrize("seed", [1, 2])
-def test_reports_equal_their_full_evaluation_after_every_step(server: str, seed: int) -> None:
+@pytest.mark.parametrize("seed", [1, pytest.param(2, marks=pytest.mark.slow)])  # a second history: the full tier
+def test_reports_equal_their_full_evaluation_after_every_step(server: httpx.Client, seed: int) -> None:
     history = History(seed)
     speakers: dict[object, set[object]] = {}  # each message's speakers over the steps: late links change them
     for step in range(16):
         post = history.next_post()
         if post is None:
-            assert httpx.post(f"{server}/ttl/delete_all", json={}).status_code == 200
+            assert server.post("/ttl/delete_all", json={}).status_code == 200
         else:
-            answer = httpx.post(
-                f"{server}/ttl", content="\n".join(post), headers={"Content-Type": "application/n-triples"}
-            )
+            answer = server.post("/ttl", content="\n".join(post), headers={"Content-Type": "application/n-triples"})
             assert answer.status_code == 201, answer.text
         settle(server)
         variants = [{}]
@@ -122,7 +122,7 @@ def test_reports_equal_their_full_evaluation_after_every_step(server: str, seed:
                 if name == "conversations" and not accepted:
                     for row in served:
                         speakers.setdefault(row["message"], set()).add(row["speaker"])
-        served_from = {httpx.get(f"{server}/reports/{query.name[8:]}").json()["served_from"] for query in REPORTS}
+        served_from = {server.get(f"/reports/{query.name[8:]}").json()["served_from"] for query in REPORTS}
         assert served_from == {"rows"}  # compared above: the rows kept current, not an evaluation
     assert set().union(*speakers.values()) == {"human", "robot", "unidentified"}  # the histories reached each
 
@@ -139,18 +139,18 @@ def test_reports_built_from_a_store_that_holds_a_history_equal_their_full_evalua
     settings = make_settings(store="oxigraph", data_dir=tmp_path / "data")
     history = History(5)
     try:
-        with LiveServer(create_app(settings, store=store)) as live:
+        with InProcess(create_app(settings, store=store)) as live:
             for _ in range(12):
                 post = history.next_post()
                 if post is not None:
-                    answer = httpx.post(
-                        f"{live.url}/ttl", content="\n".join(post), headers={"Content-Type": "application/n-triples"}
+                    answer = live.post(
+                        "/ttl", content="\n".join(post), headers={"Content-Type": "application/n-triples"}
                     )
                     assert answer.status_code == 201, answer.text
         for view in settings.data_dir.glob("reports.sqlite3*"):
             view.unlink()
-        with LiveServer(create_app(settings, store=store)) as live:
-            settle(live.url)
+        with InProcess(create_app(settings, store=store)) as live:
+            settle(live.client)
             for query in REPORTS:
                 name = query.name.removeprefix("reports/")
                 order = [column[1:] for column in _order_of(query.text)]
@@ -159,8 +159,8 @@ def test_reports_built_from_a_store_that_holds_a_history_equal_their_full_evalua
                     accepted = {key: value for key, value in params.items() if key in query.parameters}
                     if params and not accepted:
                         continue
-                    evaluated = full_evaluation(live.url, bound_text(query.name, accepted))
-                    served = report_rows(live.url, name, accepted, page=50)
+                    evaluated = full_evaluation(live.client, bound_text(query.name, accepted))
+                    served = report_rows(live.client, name, accepted, page=50)
                     same_rows(served, evaluated, order, f"{name} {accepted}")
     finally:
         store.close()

@@ -12,6 +12,7 @@ from fastapi import FastAPI
 from segb_server.backend.api.app import create_app
 from segb_server.backend.store.base import Store
 from tests.conftest import make_settings
+from tests.support.in_process import InProcess
 from tests.support.live_server import LiveServer
 
 ORIGIN = "https://auditors.example.org"
@@ -19,7 +20,8 @@ ORIGIN = "https://auditors.example.org"
 
 @pytest.fixture
 def failing_api(memory_store: Store) -> Iterator[LiveServer]:
-    """The API with one more route whose handler fails the way an unforeseen bug would."""
+    """The API with one more route whose handler fails the way an unforeseen bug would, over real HTTP (the
+    answer closes the connection)."""
     app: FastAPI = create_app(make_settings(cors_origins=ORIGIN), store=memory_store)
 
     async def broken() -> None:
@@ -30,12 +32,12 @@ def failing_api(memory_store: Store) -> Iterator[LiveServer]:
         yield server
 
 
-def test_json_answers_carry_the_security_headers(memory_api: LiveServer) -> None:
-    answer = httpx.get(f"{memory_api.url}/healthz/ready")
+def test_json_answers_carry_the_security_headers(memory_api: InProcess) -> None:
+    answer = memory_api.get("/healthz/ready")
     assert answer.headers["x-content-type-options"] == "nosniff"
     assert answer.headers["referrer-policy"] == "no-referrer"
     assert answer.headers["content-security-policy"].startswith("default-src 'none'")
-    docs = httpx.get(f"{memory_api.url}/docs")
+    docs = memory_api.get("/docs")
     assert "script-src 'self'" in docs.headers["content-security-policy"]  # its own policy, not the JSON one
 
 

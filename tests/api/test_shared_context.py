@@ -1,4 +1,5 @@
-"""/shared-context over real HTTP: the PyPI client's resolver, review decisions, persistence, concurrency."""
+"""/shared-context: the PyPI client's resolver over real HTTP; review decisions, persistence and concurrency through
+the whole app in process."""
 
 from __future__ import annotations
 
@@ -12,11 +13,11 @@ import httpx
 import pytest
 from rdflib import URIRef
 from semantic_log_generator import SemanticSEGBLogger
-from semantic_log_generator.publisher import SEGBPublisher
 from semantic_log_generator.shared_context import HTTPSharedContextResolver
 
 from segb_server.backend.api.app import create_app
 from tests.conftest import make_settings
+from tests.support.in_process import InProcess, publisher_for
 from tests.support.live_server import LiveServer
 
 NAMESPACE = "https://gsi.upm.es/segb/shared-events/"
@@ -34,29 +35,30 @@ def utterance(seconds: float, subject: str | None = MARIA, text: str = "Good mor
     }
 
 
-def resolve(server: LiveServer, body: dict[str, Any]) -> dict[str, Any]:
-    answer = httpx.post(f"{server.url}/shared-context/resolve", json=body, timeout=10)
+def resolve(server: InProcess | LiveServer, body: dict[str, Any]) -> dict[str, Any]:
+    answer = server.post("/shared-context/resolve", json=body)
     assert answer.status_code == 200, answer.text
     return answer.json()
 
 
-def get(server: LiveServer, path: str) -> dict[str, Any]:
-    answer = httpx.get(f"{server.url}{path}", timeout=10)
+def get(server: InProcess | LiveServer, path: str) -> dict[str, Any]:
+    answer = server.get(path)
     assert answer.status_code == 200, answer.text
     return answer.json()
 
 
-def post(server: LiveServer, path: str, body: dict[str, Any] | None = None) -> httpx.Response:
-    return httpx.post(f"{server.url}{path}", json=body or {}, timeout=10)
+def post(server: InProcess, path: str, body: dict[str, Any] | None = None) -> httpx.Response:
+    return server.post(path, json=body or {})
 
 
 @pytest.fixture
-def on_disk(tmp_path: Path) -> Iterator[LiveServer]:
-    with LiveServer(create_app(make_settings(store="oxigraph", data_dir=tmp_path))) as server:
+def on_disk(tmp_path: Path) -> Iterator[InProcess]:
+    with InProcess(create_app(make_settings(store="oxigraph", data_dir=tmp_path))) as server:
         yield server
 
 
 def robot(robot_id: str, server: LiveServer) -> SemanticSEGBLogger:
+    """A robot asking `server` for shared events with the client's own resolver (requests, so a real socket)."""
     return SemanticSEGBLogger(
         base_namespace=f"https://example.org/robots/{robot_id}/",
         robot_id=robot_id,
@@ -64,8 +66,8 @@ def robot(robot_id: str, server: LiveServer) -> SemanticSEGBLogger:
     )
 
 
-def test_two_robots_with_the_pypi_resolver_log_one_shared_event(memory_api: LiveServer) -> None:
-    ari, tiago = robot("ari", memory_api), robot("tiago", memory_api)
+def test_two_robots_with_the_pypi_resolver_log_one_shared_event(live_api: LiveServer) -> None:
+    ari, tiago = robot("ari", live_api), robot("tiago", live_api)
     seen_by_ari = ari.get_shared_event_uri(
         event_kind="human_utterance", observed_at=AT, subject=URIRef(MARIA), text="Hello there", modality="speech"
     )
@@ -80,19 +82,17 @@ def test_two_robots_with_the_pypi_resolver_log_one_shared_event(memory_api: Live
     assert str(seen_by_ari).startswith(NAMESPACE + "human_utterance_")
 
     for name, logger in (("ari", ari), ("tiago", tiago)):
-        SEGBPublisher(base_url=memory_api.url).publish_graph(logger.graph, user=name)
-    asked = httpx.get(
-        f"{memory_api.url}/sparql",
-        params={"query": f"SELECT (COUNT(*) AS ?n) WHERE {{ <{seen_by_ari}> ?p ?o }}"},
-        timeout=10,
+        publisher_for(live_api.url).publish_graph(logger.graph, user=name)
+    asked = live_api.get(
+        "/sparql", params={"query": f"SELECT (COUNT(*) AS ?n) WHERE {{ <{seen_by_ari}> ?p ?o }}"}
     ).json()
     assert int(asked["results"]["bindings"][0]["n"]["value"]) > 0
 
-    stats = get(memory_api, "/shared-context/stats")
+    stats = get(live_api, "/shared-context/stats")
     assert (stats["active_contexts"], stats["ambiguous_contexts"]) == (1, 0)
 
 
-def test_created_then_matched_then_ambiguous_with_the_reference_scores(memory_api: LiveServer) -> None:
+def test_created_then_matched_then_ambiguous_with_the_reference_scores(memory_api: InProcess) -> None:
     first = resolve(memory_api, utterance(0))
     assert (first["status"], first["candidate_count"]) == ("created", 0)
 
@@ -112,7 +112,7 @@ def test_created_then_matched_then_ambiguous_with_the_reference_scores(memory_ap
     assert third["close_candidates"] == [first["shared_context_uri"], other_person["shared_context_uri"]]
 
 
-def test_accepting_a_review_merges_the_ambiguous_context(memory_api: LiveServer) -> None:
+def test_accepting_a_review_merges_the_ambiguous_context(memory_api: InProcess) -> None:
     target = resolve(memory_api, utterance(0))["shared_context_uri"]
     source = resolve(memory_api, utterance(0.5, subject=None))["shared_context_uri"]
 
@@ -149,7 +149,7 @@ def test_accepting_a_review_merges_the_ambiguous_context(memory_api: LiveServer)
     assert resolve(memory_api, utterance(1.0))["shared_context_uri"] == target
 
 
-def test_rejecting_keeps_the_context_apart_and_never_proposes_the_pair_again(memory_api: LiveServer) -> None:
+def test_rejecting_keeps_the_context_apart_and_never_proposes_the_pair_again(memory_api: InProcess) -> None:
     resolve(memory_api, utterance(0))
     source = resolve(memory_api, utterance(0.5, subject=None))["shared_context_uri"]
     case = get(memory_api, "/shared-context/review/pending")["pending_cases"][0]
@@ -165,7 +165,7 @@ def test_rejecting_keeps_the_context_apart_and_never_proposes_the_pair_again(mem
     assert queue["pending_cases"] == []
 
 
-def test_reading_the_review_queue_changes_nothing(memory_api: LiveServer) -> None:
+def test_reading_the_review_queue_changes_nothing(memory_api: InProcess) -> None:
     resolve(memory_api, utterance(0))
     resolve(memory_api, utterance(0.5, subject=None))
     before = (get(memory_api, "/shared-context/stats"), get(memory_api, "/shared-context/review/pending"))
@@ -175,23 +175,23 @@ def test_reading_the_review_queue_changes_nothing(memory_api: LiveServer) -> Non
 
 
 def test_the_state_survives_a_restart_and_uris_are_deterministic(tmp_path: Path) -> None:
-    def first_two(server: LiveServer) -> list[str]:
+    def first_two(server: InProcess) -> list[str]:
         return [resolve(server, utterance(0))["shared_context_uri"], resolve(server, utterance(0.5, None))["status"]]
 
     settings = make_settings(store="oxigraph", data_dir=tmp_path / "one")
-    with LiveServer(create_app(settings)) as server:
+    with InProcess(create_app(settings)) as server:
         created, status = first_two(server)
         assert status == "ambiguous"
-    with LiveServer(create_app(settings)) as restarted:
+    with InProcess(create_app(settings)) as restarted:
         assert get(restarted, "/shared-context/review/pending")["pending_count"] == 1
         matched = resolve(restarted, utterance(0.7))
         assert (matched["status"], matched["shared_context_uri"]) == ("matched", created)
 
-    with LiveServer(create_app(make_settings(store="oxigraph", data_dir=tmp_path / "two"))) as elsewhere:
+    with InProcess(create_app(make_settings(store="oxigraph", data_dir=tmp_path / "two"))) as elsewhere:
         assert first_two(elsewhere) == [created, "ambiguous"]
 
 
-def test_robots_resolving_the_same_event_at_once_get_one_context(on_disk: LiveServer) -> None:
+def test_robots_resolving_the_same_event_at_once_get_one_context(on_disk: InProcess) -> None:
     bodies = [utterance(index * 0.05) for index in range(16)]
     with ThreadPoolExecutor(max_workers=16) as pool:
         answers = list(pool.map(lambda body: resolve(on_disk, body), bodies))
@@ -210,7 +210,7 @@ def test_robots_resolving_the_same_event_at_once_get_one_context(on_disk: LiveSe
         ({"time_window_seconds": -1}, "time_window_seconds"),
     ],
 )
-def test_bad_requests_are_refused_naming_the_field(memory_api: LiveServer, change: dict[str, Any], named: str) -> None:
+def test_bad_requests_are_refused_naming_the_field(memory_api: InProcess, change: dict[str, Any], named: str) -> None:
     answer = post(memory_api, "/shared-context/resolve", {**utterance(0), **change})
     assert answer.status_code == 422
     assert named in answer.text

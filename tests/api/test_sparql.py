@@ -1,6 +1,6 @@
-"""The read-only SPARQL endpoints over real HTTP, on the embedded store and on a real Virtuoso, filled by the
-real PyPI client: standard clients and parsers read every result format, and nothing that writes or reaches
-outside the events graph gets through."""
+"""The read-only SPARQL endpoints through the whole app in process (over real HTTP for rdflib's client), on the embedded
+store and on a real Virtuoso, filled by the real PyPI client: standard clients and parsers read every result format, and
+nothing that writes or reaches outside the events graph gets through."""
 
 from __future__ import annotations
 
@@ -8,8 +8,9 @@ import csv
 import io
 import json
 import xml.etree.ElementTree as ElementTree
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from typing import Any
 
 import httpx
 import pytest
@@ -21,7 +22,9 @@ from segb_server.backend.api.app import create_app
 from segb_server.backend.auth import mint_token
 from segb_server.backend.services.sparql.guard import MAX_QUERY_BYTES
 from segb_server.backend.store.base import Store
-from tests.conftest import make_settings
+from segb_server.backend.store.oxigraph import OxigraphStore
+from tests.conftest import STORE_KINDS, make_settings, virtuoso_store
+from tests.support.in_process import InProcess, Server, http
 from tests.support.live_server import LiveServer
 from tests.support.scenarios import Scenario, lobby
 
@@ -34,9 +37,15 @@ NAME_TRIPLES = f"PREFIX foaf: <{FOAF}>\nCONSTRUCT {{ ?h foaf:firstName ?n }} WHE
 
 @dataclass
 class Published:
-    url: str
+    server: Server  # a live server's URL, or an in-process app's client
     store: Store
     scenario: Scenario
+
+    def get(self, path: str, **options: Any) -> httpx.Response:
+        return http(self.server, "GET", path, **options)
+
+    def post(self, path: str, **options: Any) -> httpx.Response:
+        return http(self.server, "POST", path, **options)
 
     def iri(self, name: str) -> str:
         return str(self.scenario.iris[name])
@@ -53,16 +62,35 @@ class Published:
         }
 
 
+@pytest.fixture(scope="module", params=STORE_KINDS)
+def published(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Published]:
+    """The lobby published once per store for this module's tests, which only read it (those that try to write
+    check that nothing changed)."""
+    if request.param == "virtuoso":
+        store: Store = virtuoso_store(request.getfixturevalue("virtuoso"))
+    else:
+        store = OxigraphStore("http://amor-segb/events", tmp_path_factory.mktemp("sparql") / "oxigraph")
+    with InProcess(create_app(make_settings(), store=store)) as api:
+        scenario = lobby()
+        scenario.publish_all(api.client)
+        yield Published(api.client, store, scenario)
+    if request.param == "virtuoso":
+        store.clear()
+    store.close()
+
+
 @pytest.fixture
-def published(api: LiveServer, store: Store) -> Published:
-    scenario = lobby()
-    scenario.publish_all(api.url)
-    return Published(api.url, store, scenario)
+def published_live(store: Store) -> Iterator[Published]:
+    """The lobby over real HTTP, for clients with HTTP libraries of their own."""
+    with LiveServer(create_app(make_settings(), store=store)) as live:
+        scenario = lobby()
+        scenario.publish_all(live.url)
+        yield Published(live.url, store, scenario)
 
 
-def sparql(url: str, query: str, accept: str | None = None, **params: str) -> httpx.Response:
+def sparql(server: Server, query: str, accept: str | None = None, **params: str) -> httpx.Response:
     headers = {"Accept": accept} if accept else {}
-    return httpx.get(f"{url}/sparql", params={"query": query, **params}, headers=headers, timeout=60)
+    return http(server, "GET", "/sparql", params={"query": query, **params}, headers=headers)
 
 
 # --- standard parsers, one per result format --------------------------------------------------------------
@@ -121,12 +149,13 @@ def triples(response: httpx.Response) -> set[Triple]:
 # --- standard clients and formats ------------------------------------------------------------------------
 
 
-def test_rdflib_sparqlstore_runs_a_select_over_every_protocol_binding(published: Published) -> None:
+def test_rdflib_sparqlstore_runs_a_select_over_every_protocol_binding(published_live: Published) -> None:
+    endpoint = f"{published_live.server}/sparql"
     for method, return_format in (("GET", "xml"), ("POST", "json"), ("POST_FORM", "xml"), ("GET", "csv")):
-        graph = Graph(store=SPARQLStore(f"{published.url}/sparql", method=method, returnFormat=return_format))
+        graph = Graph(store=SPARQLStore(endpoint, method=method, returnFormat=return_format))
         rows = [(str(row.human), str(row.name)) for row in graph.query(NAMES)]  # type: ignore[union-attr]
-        assert rows == published.name_rows(), (method, return_format)
-    graph = Graph(store=SPARQLStore(f"{published.url}/sparql"))
+        assert rows == published_live.name_rows(), (method, return_format)
+    graph = Graph(store=SPARQLStore(endpoint))
     assert len(graph.query(NAME_TRIPLES)) == 2
 
 
@@ -134,14 +163,14 @@ def test_rdflib_sparqlstore_runs_a_select_over_every_protocol_binding(published:
 def test_every_select_format_parses_to_the_same_rows(
     published: Published, name: str, media_type: str, read_rows: Callable[[bytes], list[tuple[str, ...]]]
 ) -> None:
-    by_accept = sparql(published.url, NAMES, accept=media_type)
-    by_parameter = httpx.post(
-        f"{published.url}/sparql",
+    by_accept = sparql(published.server, NAMES, accept=media_type)
+    by_parameter = published.post(
+        "/sparql",
         params={"format": name},
         content=NAMES.encode(),
         headers={"Content-Type": "application/sparql-query"},
     )
-    by_form = httpx.post(f"{published.url}/sparql", data={"query": NAMES}, headers={"Accept": f"{media_type};q=0.9"})
+    by_form = published.post("/sparql", data={"query": NAMES}, headers={"Accept": f"{media_type};q=0.9"})
     for response in (by_accept, by_parameter, by_form):
         assert response.status_code == 200, response.text
         assert response.headers["content-type"].split(";")[0] == media_type
@@ -149,10 +178,10 @@ def test_every_select_format_parses_to_the_same_rows(
 
 
 def test_select_defaults_to_json_and_construct_to_turtle(published: Published) -> None:
-    select = sparql(published.url, NAMES, accept="*/*")
+    select = sparql(published.server, NAMES, accept="*/*")
     assert select.headers["content-type"] == "application/sparql-results+json"
     assert json_rows(select.content) == published.name_rows()
-    construct = sparql(published.url, NAME_TRIPLES)
+    construct = sparql(published.server, NAME_TRIPLES)
     assert construct.headers["content-type"] == "text/turtle; charset=utf-8"
     assert triples(construct) == published.name_triples()
 
@@ -160,8 +189,8 @@ def test_select_defaults_to_json_and_construct_to_turtle(published: Published) -
 @pytest.mark.parametrize(("name", "media_type"), GRAPH_FORMATS, ids=[f[0] for f in GRAPH_FORMATS])
 def test_every_graph_format_parses_to_the_same_triples(published: Published, name: str, media_type: str) -> None:
     for response in (
-        sparql(published.url, NAME_TRIPLES, accept=media_type),
-        sparql(published.url, NAME_TRIPLES, format=name),
+        sparql(published.server, NAME_TRIPLES, accept=media_type),
+        sparql(published.server, NAME_TRIPLES, format=name),
     ):
         assert response.status_code == 200, response.text
         assert response.headers["content-type"].split(";")[0] == media_type
@@ -169,7 +198,7 @@ def test_every_graph_format_parses_to_the_same_triples(published: Published, nam
 
 
 def test_describe_tells_about_a_resource(published: Published) -> None:
-    response = sparql(published.url, f"DESCRIBE <{published.iri('maria')}>", accept="application/n-triples")
+    response = sparql(published.server, f"DESCRIBE <{published.iri('maria')}>", accept="application/n-triples")
     assert response.status_code == 200, response.text
     maria = NamedNode(published.iri("maria"))
     assert Triple(maria, NamedNode(FOAF + "firstName"), Literal("Maria", language="en")) in triples(response)
@@ -179,10 +208,10 @@ def test_ask_answers_true_and_false_in_json_and_xml(published: Published) -> Non
     known = f"ASK {{ <{published.iri('maria')}> ?p ?o }}"
     unknown = "ASK { ?s ?p 'nobody said this' }"
     for query, expected in ((known, True), (unknown, False)):
-        as_json = sparql(published.url, query)
+        as_json = sparql(published.server, query)
         assert as_json.status_code == 200, as_json.text
         assert json.loads(as_json.content)["boolean"] is expected
-        as_xml = sparql(published.url, query, accept="application/sparql-results+xml")
+        as_xml = sparql(published.server, query, accept="application/sparql-results+xml")
         assert ElementTree.fromstring(as_xml.content).find("r:boolean", RESULTS_NS).text == str(expected).lower()  # type: ignore[union-attr]
 
 
@@ -210,32 +239,32 @@ def test_forbidden_queries_are_refused_naming_the_reason_and_change_nothing(publ
     for query, reason, fragment in FORBIDDEN:
         # The standard endpoint answers the protocol's 400; the reference's /query its own 422.
         for status, response in (
-            (400, sparql(published.url, query)),
-            (400, httpx.post(f"{published.url}/sparql", data={"query": query})),
+            (400, sparql(published.server, query)),
+            (400, published.post("/sparql", data={"query": query})),
             (
                 400,
-                httpx.post(
-                    f"{published.url}/sparql",
+                published.post(
+                    "/sparql",
                     content=query.encode(),
                     headers={"Content-Type": "application/sparql-query"},
                 ),
             ),
-            (422, httpx.get(f"{published.url}/query", params={"query": query})),
+            (422, published.get("/query", params={"query": query})),
         ):
             assert response.status_code == status, (query, response.text)
             body = response.json()
             assert (body["error"], body["reason"]) == ("invalid_query", reason), query
             assert fragment in body["detail"], body["detail"]
     # The SPARQL Update binding of the protocol (an `update` form field) is refused the same way.
-    response = httpx.post(f"{published.url}/sparql", data={"update": "DELETE WHERE {?s ?p ?o}"})
+    response = published.post("/sparql", data={"update": "DELETE WHERE {?s ?p ?o}"})
     assert (response.status_code, response.json()["reason"]) == (400, "update")
     assert published.store.count() == before
-    assert json_rows(sparql(published.url, NAMES).content) == published.name_rows()
+    assert json_rows(sparql(published.server, NAMES).content) == published.name_rows()
 
 
 def test_a_syntax_error_answers_its_line_and_column(published: Published) -> None:
     query = f"PREFIX foaf: <{FOAF}>\nSELECT ?name WHERE {{\n  ?h foaf:firstName ?name .\n  FILTER(?name = )\n}}"
-    response = sparql(published.url, query)
+    response = sparql(published.server, query)
     assert response.status_code == 400
     body = response.json()
     assert (body["reason"], body["line"], body["column"]) == ("syntax", 4, 3)
@@ -245,22 +274,22 @@ def test_a_syntax_error_answers_its_line_and_column(published: Published) -> Non
 def test_the_dataset_is_the_events_graph_only(published: Published) -> None:
     graph = published.store.graph_uri
     same = [
-        sparql(published.url, NAMES.replace("WHERE", f"FROM <{graph}> WHERE")),
-        sparql(published.url, NAMES, **{"default-graph-uri": graph}),
+        sparql(published.server, NAMES.replace("WHERE", f"FROM <{graph}> WHERE")),
+        sparql(published.server, NAMES, **{"default-graph-uri": graph}),
     ]
     for response in same:
         assert response.status_code == 200, response.text
         assert json_rows(response.content) == published.name_rows()
     for params in ({"default-graph-uri": "http://ex.org/other"}, {"named-graph-uri": graph}):
-        response = sparql(published.url, NAMES, **params)
+        response = sparql(published.server, NAMES, **params)
         assert (response.status_code, response.json()["reason"]) == (400, "dataset")
 
 
 # --- protocol details (store-independent) -----------------------------------------------------------------
 
 
-def test_negotiation_failures_and_preferences(memory_api: LiveServer) -> None:
-    url = memory_api.url
+def test_negotiation_failures_and_preferences(memory_api: InProcess) -> None:
+    url = memory_api.client
     assert sparql(url, NAMES, accept="text/html").status_code == 406
     assert sparql(url, NAMES, format="turtle").status_code == 406
     assert sparql(url, NAME_TRIPLES, accept="text/csv").status_code == 406
@@ -275,12 +304,12 @@ def test_negotiation_failures_and_preferences(memory_api: LiveServer) -> None:
     assert sparql(url, NAMES).headers["vary"] == "Accept"
 
 
-def test_format_hints_as_sparqlwrapper_sends_them(memory_api: LiveServer) -> None:
-    url = memory_api.url
+def test_format_hints_as_sparqlwrapper_sends_them(memory_api: InProcess) -> None:
+    url = memory_api.client
 
     def get(query: str, *formats: str) -> httpx.Response:
         params = [("query", query), *(("format", value) for value in formats)]
-        return httpx.get(f"{url}/sparql", params=params, timeout=60)
+        return http(url, "GET", "/sparql", params=params)
 
     agreeing = get(NAMES, "tsv", "text/tab-separated-values")
     assert agreeing.headers["content-type"] == "text/tab-separated-values; charset=utf-8"
@@ -291,32 +320,35 @@ def test_format_hints_as_sparqlwrapper_sends_them(memory_api: LiveServer) -> Non
     assert get(NAME_TRIPLES, "n3").headers["content-type"] == "text/n3; charset=utf-8"
     disagreeing = get(NAMES, "json", "csv")
     assert (disagreeing.status_code, disagreeing.json()["parameter"]) == (422, "format")
-    two_queries = httpx.get(f"{url}/sparql", params=[("query", NAMES), ("query", NAMES)])
+    two_queries = http(url, "GET", "/sparql", params=[("query", NAMES), ("query", NAMES)])
     assert (two_queries.status_code, two_queries.json()["reason"]) == (400, "multiple_queries")
 
 
-def test_bad_requests(memory_api: LiveServer) -> None:
-    url = memory_api.url
-    missing = httpx.get(f"{url}/sparql")
+def test_bad_requests(memory_api: InProcess) -> None:
+    url = memory_api.client
+    missing = http(url, "GET", "/sparql")
     assert (missing.status_code, missing.json()["reason"]) == (400, "empty")
-    wrong_type = httpx.post(f"{url}/sparql", content=NAMES.encode(), headers={"Content-Type": "text/plain"})
+    wrong_type = http(url, "POST", "/sparql", content=NAMES.encode(), headers={"Content-Type": "text/plain"})
     assert wrong_type.status_code == 415
     too_long = "SELECT * { ?s ?p ?o }" + "#" * MAX_QUERY_BYTES
-    response = httpx.post(
-        f"{url}/sparql", content=too_long.encode(), headers={"Content-Type": "application/sparql-query"}
+    response = http(
+        url, "POST", "/sparql", content=too_long.encode(), headers={"Content-Type": "application/sparql-query"}
     )
     assert (response.status_code, response.json()["reason"]) == (413, "too_long")
+    only_comments = http(
+        url, "POST", "/sparql", content=b"# who spoke to ARI?\n", headers={"Content-Type": "application/sparql-query"}
+    )
+    assert (only_comments.status_code, only_comments.json()["reason"]) == (400, "empty")
+    assert only_comments.json()["detail"].startswith("The query is empty")  # not "SPARQL Update is not allowed"
 
 
 def test_only_auditors_and_admins_may_query(memory_store: Store) -> None:
     secret = "s" * 32
-    with LiveServer(create_app(make_settings(secret_key=secret), store=memory_store)) as server:
-        assert sparql(server.url, NAMES).status_code == 401
+    with InProcess(create_app(make_settings(secret_key=secret), store=memory_store)) as server:
+        assert sparql(server.client, NAMES).status_code == 401
         for roles, status in ((["logger"], 403), (["auditor"], 200), (["admin"], 200)):
             token = mint_token(secret, username="someone", roles=roles).token
-            response = httpx.get(
-                f"{server.url}/sparql", params={"query": NAMES}, headers={"Authorization": f"Bearer {token}"}
-            )
+            response = server.get("/sparql", params={"query": NAMES}, headers={"Authorization": f"Bearer {token}"})
             assert response.status_code == status, roles
 
 
@@ -338,27 +370,27 @@ def result_rows(turtle: bytes) -> list[dict[str, object]]:
 
 
 def test_reference_query_encodes_rows_as_turtle_in_order(published: Published) -> None:
-    response = httpx.get(f"{published.url}/query", params={"query": NAMES})
+    response = published.get("/query", params={"query": NAMES})
     assert response.status_code == 200, response.text
     assert response.headers["content-type"] == "text/turtle; charset=utf-8"
     assert result_rows(response.content) == [
         {"human": NamedNode(iri), "name": Literal(name, language="en")} for iri, name in published.name_rows()
     ]
-    ask = httpx.get(f"{published.url}/query", params={"query": f"ASK {{ <{published.iri('juan')}> ?p ?o }}"})
+    ask = published.get("/query", params={"query": f"ASK {{ <{published.iri('juan')}> ?p ?o }}"})
     assert result_rows(ask.content) == [{"boolean": Literal(True)}]
-    construct = httpx.get(f"{published.url}/query", params={"query": NAME_TRIPLES})
+    construct = published.get("/query", params={"query": NAME_TRIPLES})
     assert triples(construct) == published.name_triples()
-    assert httpx.get(f"{published.url}/query").status_code == 422  # the reference's answer to a missing query
+    assert published.get("/query").status_code == 422  # the reference's answer to a missing query
 
 
-def validate(url: str, query: str) -> dict[str, object]:
-    response = httpx.post(f"{url}/query/validate", json={"query": query})
+def validate(server: Server, query: str) -> dict[str, object]:
+    response = http(server, "POST", "/query/validate", json={"query": query})
     assert response.status_code == 200, response.text
     return response.json()
 
 
-def test_reference_validate_reports_without_running(memory_api: LiveServer) -> None:
-    url = memory_api.url
+def test_reference_validate_reports_without_running(memory_api: InProcess) -> None:
+    url = memory_api.client
     assert validate(url, NAMES) == {
         "valid": True,
         "query_kind": "select",
@@ -383,4 +415,4 @@ def test_reference_validate_reports_without_running(memory_api: LiveServer) -> N
     for form in ("ask", "construct", "describe"):
         query = {"ask": "ASK {}", "construct": "CONSTRUCT WHERE { ?s ?p ?o }", "describe": "DESCRIBE <http://x.org/>"}
         assert validate(url, query[form])["query_kind"] == form
-    assert httpx.post(f"{url}/query/validate", json={}).status_code == 422
+    assert http(url, "POST", "/query/validate", json={}).status_code == 422

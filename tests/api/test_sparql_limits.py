@@ -1,5 +1,5 @@
-"""The time limit and row cap of user SPARQL (/sparql and /query), over real HTTP, on the embedded store and on
-a real Virtuoso: long answers are cut and flagged, slow queries stopped with a 503 naming the timeout, and
+"""The time limit and row cap of user SPARQL (/sparql and /query), through the whole app in process, on the embedded
+store and on a real Virtuoso: long answers are cut and flagged, slow queries stopped with a 503 naming the timeout, and
 ordinary queries answer exactly as before."""
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from pyoxigraph import Literal, NamedNode, Quad, RdfFormat, parse
 from segb_server.backend.api.app import create_app
 from segb_server.backend.store.base import Store
 from tests.conftest import make_settings
-from tests.support.live_server import LiveServer
+from tests.support.in_process import InProcess, Server, http
 
 EX = "http://example.org/limits/"
 EVERYTHING = "SELECT ?s ?o WHERE { ?s ?p ?o } ORDER BY ?s"
@@ -28,43 +28,43 @@ def fill(store: Store, triples: int) -> None:
     store.apply([Quad(NamedNode(f"{EX}thing/{n:05d}"), predicate, Literal(str(n))) for n in range(triples)], 0)
 
 
-def serve(store: Store, **limits: object) -> Iterator[LiveServer]:
-    with LiveServer(create_app(make_settings(**limits), store=store)) as server:
+def serve(store: Store, **limits: object) -> Iterator[InProcess]:
+    with InProcess(create_app(make_settings(**limits), store=store)) as server:
         yield server
 
 
 @pytest.fixture
-def capped(store: Store) -> Iterator[LiveServer]:
+def capped(store: Store) -> Iterator[InProcess]:
     """Thirty triples behind a cap of ten rows."""
     fill(store, 30)
     yield from serve(store, sparql_max_rows=10)
 
 
-def get(url: str, path: str, query: str, **params: str) -> httpx.Response:
-    return httpx.get(f"{url}{path}", params={"query": query, **params}, timeout=120)
+def get(server: Server, path: str, query: str, **params: str) -> httpx.Response:
+    return http(server, "GET", f"{path}", params={"query": query, **params})
 
 
-def test_an_answer_over_the_row_cap_is_cut_and_flagged(capped: LiveServer) -> None:
-    answer = get(capped.url, "/sparql", EVERYTHING)
+def test_an_answer_over_the_row_cap_is_cut_and_flagged(capped: InProcess) -> None:
+    answer = get(capped.client, "/sparql", EVERYTHING)
     assert answer.status_code == 200, answer.text
     bindings = answer.json()["results"]["bindings"]
     assert [row["s"]["value"] for row in bindings] == [f"{EX}thing/{n:05d}" for n in range(10)]  # order kept
     assert answer.headers["x-segb-truncated"] == "true"
     assert answer.headers["x-segb-max-rows"] == "10"
 
-    as_csv = get(capped.url, "/sparql", EVERYTHING, format="csv")
+    as_csv = get(capped.client, "/sparql", EVERYTHING, format="csv")
     rows = list(csv.reader(io.StringIO(as_csv.text)))
     assert rows[0] == ["s", "o"] and len(rows) == 11
     assert as_csv.headers["x-segb-truncated"] == "true"
 
 
-def test_graph_answers_and_the_reference_query_are_capped_too(capped: LiveServer) -> None:
-    graph = get(capped.url, "/sparql", "CONSTRUCT WHERE { ?s ?p ?o }", format="ntriples")
+def test_graph_answers_and_the_reference_query_are_capped_too(capped: InProcess) -> None:
+    graph = get(capped.client, "/sparql", "CONSTRUCT WHERE { ?s ?p ?o }", format="ntriples")
     assert graph.status_code == 200, graph.text
     assert len(list(parse(graph.content, RdfFormat.N_TRIPLES))) == 10
     assert graph.headers["x-segb-truncated"] == "true"
 
-    reference = get(capped.url, "/query", EVERYTHING)
+    reference = get(capped.client, "/query", EVERYTHING)
     assert reference.status_code == 200, reference.text
     subjects = "http://example.org/s"  # the reference's encoding: one ex:<variable> triple per bound cell
     rows = [quad for quad in parse(reference.content, RdfFormat.TURTLE) if quad.predicate.value == subjects]
@@ -72,8 +72,8 @@ def test_graph_answers_and_the_reference_query_are_capped_too(capped: LiveServer
     assert reference.headers["x-segb-truncated"] == "true"
 
 
-def test_an_answer_at_the_cap_exactly_is_not_flagged(capped: LiveServer) -> None:
-    answer = get(capped.url, "/sparql", EVERYTHING + " LIMIT 10")
+def test_an_answer_at_the_cap_exactly_is_not_flagged(capped: InProcess) -> None:
+    answer = get(capped.client, "/sparql", EVERYTHING + " LIMIT 10")
     assert len(answer.json()["results"]["bindings"]) == 10
     assert "x-segb-truncated" not in answer.headers
 
@@ -81,8 +81,8 @@ def test_an_answer_at_the_cap_exactly_is_not_flagged(capped: LiveServer) -> None
 def test_ordinary_queries_answer_in_full_under_the_default_limits(store: Store) -> None:
     fill(store, 300)
     for server in serve(store):
-        answer = get(server.url, "/sparql", EVERYTHING)
-        ask = get(server.url, "/sparql", "ASK { ?s ?p ?o }")
+        answer = get(server.client, "/sparql", EVERYTHING)
+        ask = get(server.client, "/sparql", "ASK { ?s ?p ?o }")
     assert answer.status_code == 200
     assert len(answer.json()["results"]["bindings"]) == 300
     assert "x-segb-truncated" not in answer.headers
@@ -93,10 +93,10 @@ def test_a_query_past_the_time_limit_is_stopped_with_503(store: Store) -> None:
     fill(store, 2000)  # the cross join has four million rows
     for server in serve(store, sparql_timeout_seconds=0.5, sparql_max_rows=10_000_000):
         started = time.monotonic()
-        answer = get(server.url, "/sparql", CROSS_JOIN)
+        answer = get(server.client, "/sparql", CROSS_JOIN)
         elapsed = time.monotonic() - started
-        reference = get(server.url, "/query", CROSS_JOIN)
-        after = get(server.url, "/sparql", "ASK { ?s ?p ?o }")
+        reference = get(server.client, "/query", CROSS_JOIN)
+        after = get(server.client, "/sparql", "ASK { ?s ?p ?o }")
     assert answer.status_code == 503, answer.text[:300]
     body = answer.json()
     assert body["error"] == "query_timeout" and body["status"] == 503
@@ -112,8 +112,8 @@ def test_a_sorted_page_past_what_the_store_sorts_is_refused_by_name(store: Store
     user's to change, so it is a 400 saying why, not a 502 as if the store had failed."""
     fill(store, 30)
     for server in serve(store):
-        within = get(server.url, "/sparql", EVERYTHING + " LIMIT 10000")
-        beyond = get(server.url, "/sparql", EVERYTHING + " LIMIT 5000 OFFSET 5001")
+        within = get(server.client, "/sparql", EVERYTHING + " LIMIT 10000")
+        beyond = get(server.client, "/sparql", EVERYTHING + " LIMIT 5000 OFFSET 5001")
     assert within.status_code == 200 and len(within.json()["results"]["bindings"]) == 30
     if store.max_sorted_rows is None:
         assert beyond.status_code == 200, beyond.text[:300]
@@ -135,7 +135,7 @@ def test_virtuoso_stops_an_aggregate_at_the_time_limit(virtuoso) -> None:  # typ
         fill(store, 2000)
         for server in serve(store, sparql_timeout_seconds=0.5):
             started = time.monotonic()
-            answer = get(server.url, "/sparql", "SELECT (COUNT(*) AS ?n) WHERE { ?a ?p ?b . ?c ?q ?d . ?e ?r ?f }")
+            answer = get(server.client, "/sparql", "SELECT (COUNT(*) AS ?n) WHERE { ?a ?p ?b . ?c ?q ?d . ?e ?r ?f }")
             elapsed = time.monotonic() - started
     finally:
         store.clear()

@@ -19,6 +19,8 @@ from tests.conftest import FIXTURES
 from tests.support.graphs import value_triples
 from tests.support.net import free_port
 
+pytestmark = pytest.mark.processes  # runs the segb command
+
 SEGB = [sys.executable, "-m", "segb_server.backend.cli"]  # the `segb` command of this interpreter
 
 

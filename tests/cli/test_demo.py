@@ -10,8 +10,12 @@ from pathlib import Path
 from typing import Any
 
 import httpx
+import pytest
 
+from segb_server.backend.api.app import create_app
 from tests.cli.test_cli import SEGB, clean_env, segb, wait_for
+from tests.conftest import make_settings
+from tests.support.in_process import InProcess
 from tests.support.live_server import LiveServer
 from tests.support.net import free_port
 from tests.support.settle import settle
@@ -30,6 +34,34 @@ SELECT DISTINCT ?event WHERE {
 """
 
 
+# An emotion read on a person, by an activity not linked to the shared event of the exchange, about that person,
+# that the reading belongs to: what the reference UI's human-emotion panels need (reference-ui.md, report 3).
+EMOTIONS_WITHOUT_THEIR_EVENT = """
+PREFIX schema: <http://schema.org/>
+PREFIX segb: <http://www.gsi.upm.es/ontologies/segb/ns#>
+PREFIX onyx: <http://www.gsi.upm.es/ontologies/onyx/ns#>
+PREFIX oa: <http://www.w3.org/ns/oa#>
+PREFIX oro: <http://kb.openrobots.org#>
+SELECT ?activity ?person WHERE {
+  ?activity a onyx:EmotionAnalysis, segb:LoggedActivity ; segb:producedEntityResult ?annotation .
+  ?annotation onyx:hasEmotion ?emotion ; oa:hasTarget ?person .
+  ?person a oro:Human .
+  FILTER NOT EXISTS { ?activity schema:about ?event . ?event schema:about ?person }
+}
+"""
+
+
+def test_every_emotion_the_demo_reads_on_a_person_is_about_that_persons_shared_event(tmp_path: Path) -> None:
+    """As the tutorial's robot logs it, a reading on a face is `schema:about` the shared event of the utterance it
+    came with, and that event is about the person: the reference web UI shows such readings only."""
+    with InProcess(create_app(make_settings(store="memory", data_dir=tmp_path), demo=True)) as api:
+        settle(api.client)
+        timeline = api.get("/reports/emotion-timeline").json()["rows"]
+        unlinked = select_bindings(api.client, EMOTIONS_WITHOUT_THEIR_EVENT)
+    assert {row["targetName"] for row in timeline if row["targetKind"] == "human"} == {"Maria", "Carlos"}
+    assert unlinked == []
+
+
 def rows(url: str, name: str) -> list[dict[str, Any]]:
     settle(url)  # the reports are rows kept current from the journal: read them once they include every post
     response = httpx.get(f"{url}/reports/{name}", timeout=30)
@@ -41,41 +73,42 @@ def triple_count(url: str) -> int:
     return len(httpx.get(f"{url}/events", params={"format": "ntriples"}, timeout=30).text.splitlines())
 
 
-def test_segb_demo_fills_every_report_once(memory_api: LiveServer) -> None:
-    published = segb("demo", "--server", memory_api.url)
+@pytest.mark.processes
+def test_segb_demo_fills_every_report_once(live_api: LiveServer) -> None:
+    published = segb("demo", "--server", live_api.url)
     assert published.returncode == 0, published.stderr
     assert "demo dataset published" in published.stdout
 
     for name in REPORTS:
-        assert rows(memory_api.url, name), f"{name} has no rows"
-    pairs = {(row["humanName"], row["robotName"]) for row in rows(memory_api.url, "participants")}
+        assert rows(live_api.url, name), f"{name} has no rows"
+    pairs = {(row["humanName"], row["robotName"]) for row in rows(live_api.url, "participants")}
     assert pairs == {("Maria", "ARI"), ("Maria", "TIAGo"), ("Carlos", "TIAGo")}
 
     # ARI and TIAGo heard Maria's first utterance as one shared event, which the server's resolver minted; the
     # utterance TIAGo overheard late, without seeing the speaker, waits for a reviewer.
-    shared = select_bindings(memory_api.url, SHARED_BY_TWO_ROBOTS)
+    shared = select_bindings(live_api.url, SHARED_BY_TWO_ROBOTS)
     assert len(shared) == 1
     assert shared[0]["event"]["value"].startswith("https://gsi.upm.es/segb/shared-events/human_utterance_")
-    assert shared_context(memory_api.url) == SHARED_CONTEXTS
+    assert shared_context(live_api.url) == SHARED_CONTEXTS
 
-    assert_nothing_overstated(memory_api.url)
+    assert_nothing_overstated(live_api.url)
 
-    # The cases the reference reports drop: an emotion about no shared event, a state without location.
-    carlos = [row for row in rows(memory_api.url, "emotion-timeline") if row["targetName"] == "Carlos"]
+    # Carlos's anger, read by TIAGo; and a case the reference reports drop: a state without location.
+    carlos = [row for row in rows(live_api.url, "emotion-timeline") if row["targetName"] == "Carlos"]
     assert [(row["category"], row["robotName"]) for row in carlos] == [("anger", "TIAGo")]
-    docking = [row for row in rows(memory_api.url, "robot-states") if row["value"] == "docking"]
+    docking = [row for row in rows(live_api.url, "robot-states") if row["value"] == "docking"]
     assert [(row["robotName"], row["location"], row["note"]) for row in docking] == [
         ("TIAGo", None, "Going back to the charger")
     ]
-    usage = rows(memory_api.url, "ml-usage")
+    usage = rows(live_api.url, "ml-usage")
     lineage = {(row["datasetName"], row["score"]) for row in usage if row["robotName"] == "ARI"}
     assert ("FER-2013 facial expressions", 0.71) in lineage
 
-    before = triple_count(memory_api.url)
-    again = segb("demo", "--server", memory_api.url)
+    before = triple_count(live_api.url)
+    again = segb("demo", "--server", live_api.url)
     assert again.returncode == 0, again.stderr
     assert "already has the demo dataset" in again.stdout
-    assert triple_count(memory_api.url) == before
+    assert triple_count(live_api.url) == before
 
 
 # Maria's four utterances to ARI (one also heard by TIAGo) and Carlos's question: active; the overheard one:
@@ -109,6 +142,7 @@ def assert_nothing_overstated(url: str) -> None:
         assert "analysed" not in seed["sentence"]
 
 
+@pytest.mark.processes
 def test_segb_demo_says_when_no_server_answers() -> None:
     server = f"http://127.0.0.1:{free_port()}"
     result = segb("demo", "--server", server)
@@ -116,6 +150,7 @@ def test_segb_demo_says_when_no_server_answers() -> None:
     assert f"cannot reach the SEGB server at {server}" in result.stderr
 
 
+@pytest.mark.processes
 def test_serve_demo_loads_the_dataset_into_an_empty_store_only(tmp_path: Path) -> None:
     first = serve_demo(tmp_path)
     assert "demo dataset loaded" in first.log
@@ -133,6 +168,7 @@ def test_serve_demo_loads_the_dataset_into_an_empty_store_only(tmp_path: Path) -
     assert second.shared_contexts == SHARED_CONTEXTS
 
 
+@pytest.mark.processes
 def test_serve_demo_in_memory_keeps_the_demo_in_the_servers_own_journal_and_resolver(tmp_path: Path) -> None:
     """With STORE=memory the journal and resolver live in the server's memory: the demo must go through the
     server's own, or its receipt and shared events are lost and the journal's sequence restarts under the

@@ -7,11 +7,14 @@ from pathlib import Path
 
 import httpx
 import jwt
+import pytest
 
 from segb_server.backend.api.app import create_app
 from tests.cli.test_cli import segb
 from tests.conftest import make_settings
 from tests.support.live_server import LiveServer
+
+pytestmark = pytest.mark.processes  # runs the segb command
 
 SECRET = "s" * 40
 

@@ -67,6 +67,7 @@ def compose(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
 HEALTHY = {"condition": "service_healthy"}
 
 
+@pytest.mark.processes  # docker-compose config
 def test_config_resolves_the_four_services_with_the_example_env(compose: dict[str, Any]) -> None:
     services = compose["services"]
     assert set(services) == {"virtuoso", "backend", "proxy", "ui"}
@@ -96,6 +97,7 @@ def test_config_resolves_the_four_services_with_the_example_env(compose: dict[st
     assert NGINX_CONF.is_file()
 
 
+@pytest.mark.processes  # docker-compose config
 def test_config_passes_the_example_env_to_the_containers(compose: dict[str, Any]) -> None:
     example = read_env_file(ENV_EXAMPLE)
     services = compose["services"]
@@ -116,6 +118,7 @@ def test_config_passes_the_example_env_to_the_containers(compose: dict[str, Any]
     assert "VIRTUOSO_PASSWORD" not in services["ui"]["environment"]  # the UI holds no store credentials
 
 
+@pytest.mark.processes  # docker-compose config
 def test_healthchecks_probe_each_container_s_own_service(compose: dict[str, Any]) -> None:
     services = compose["services"]
     assert "isql 1111 dba" in services["virtuoso"]["healthcheck"]["test"][1]
@@ -130,6 +133,7 @@ def test_healthchecks_probe_each_container_s_own_service(compose: dict[str, Any]
     assert services["ui"]["command"][-2:] == ["--ui-port", "8080"]
 
 
+@pytest.mark.processes  # docker-compose config
 def test_the_postgres_override_moves_the_state_to_a_postgres_service(compose: dict[str, Any], tmp_path: Path) -> None:
     services = resolved_compose(tmp_path, (COMPOSE_FILE, POSTGRES_OVERRIDE))["services"]
     assert set(services) == {"virtuoso", "backend", "proxy", "ui", "postgres"}
@@ -145,6 +149,7 @@ def test_the_postgres_override_moves_the_state_to_a_postgres_service(compose: di
     assert "ports" not in backend and backend["command"] == compose["services"]["backend"]["command"]
 
 
+@pytest.mark.processes  # docker-compose config
 def test_the_postgres_override_without_its_password_fails_naming_it(tmp_path: Path) -> None:
     env = "\n".join(line for line in ENV_EXAMPLE.read_text().splitlines() if not line.startswith("POSTGRES_PASSWORD"))
     result = run_compose_config(tmp_path, env, (COMPOSE_FILE, POSTGRES_OVERRIDE))
@@ -152,6 +157,7 @@ def test_the_postgres_override_without_its_password_fails_naming_it(tmp_path: Pa
     assert "set POSTGRES_PASSWORD in .env to use docker-compose.postgres.yaml" in result.stderr
 
 
+@pytest.mark.processes  # docker-compose config
 def test_config_publishes_on_the_address_chosen_in_the_env(tmp_path: Path) -> None:
     env = ENV_EXAMPLE.read_text().replace("PUBLISH_ADDRESS=127.0.0.1", "PUBLISH_ADDRESS=0.0.0.0")
     result = run_compose_config(tmp_path, env)
@@ -161,6 +167,7 @@ def test_config_publishes_on_the_address_chosen_in_the_env(tmp_path: Path) -> No
     assert services["ui"]["ports"] == ["0.0.0.0:8080:8080/tcp"]
 
 
+@pytest.mark.processes  # docker-compose config
 def test_config_without_the_virtuoso_password_fails_naming_it(tmp_path: Path) -> None:
     env = "\n".join(line for line in ENV_EXAMPLE.read_text().splitlines() if not line.startswith("VIRTUOSO_PASSWORD"))
     result = run_compose_config(tmp_path, env)
@@ -420,6 +427,6 @@ def test_scaled_backends_with_the_state_in_postgres_run_natively(tmp_path: Path,
         with psycopg.connect(postgres.url("segb")) as connection:
             kept = connection.execute("SELECT COUNT(*) FROM receipts").fetchone()[0]
         assert kept == verified["receipts"]  # the chain lives in PostgreSQL
-        assert not (stack.directory / "backend-root" / "data" / "ledger.sqlite3").exists()
+        assert not (stack.directory / "backend-root" / "data" / "journal.sqlite3").exists()
         for backend in up.backends:
             assert "Traceback" not in backend.output()

@@ -20,6 +20,8 @@ from tests.support.net import free_port
 from tests.support.processes import running
 from tests.support.scenarios import lobby
 
+pytestmark = pytest.mark.processes  # runs Oxigraph's server and API workers
+
 
 def oxigraph_binary() -> str | None:
     """The `oxigraph` executable pip installed beside this interpreter's scripts (or for the user), else on PATH."""

@@ -10,6 +10,7 @@ import tomllib
 import zipfile
 from pathlib import Path
 
+import pytest
 from packaging.requirements import Requirement
 from packaging.utils import canonicalize_name
 
@@ -119,6 +120,7 @@ def test_healthcheck_probes_api_readiness() -> None:
     assert {"interval", "timeout", "retries"} <= set(options)
 
 
+@pytest.mark.processes
 def test_package_built_from_the_build_stage_copies_holds_every_runtime_file(tmp_path: Path) -> None:
     """What `pip install --no-deps .` installs in the image: built from exactly the files the stage copies,
     with the same build tools (the lock's setuptools, no build isolation, nothing downloaded)."""

@@ -18,6 +18,8 @@ from tests.cli.test_demo import REPORTS
 from tests.support.compose import ROOT
 from tests.support.net import free_port
 
+pytestmark = pytest.mark.processes  # builds and installs a wheel, runs what it installed
+
 
 def checkout_files() -> list[str]:
     """The files a clean checkout of this working tree holds (tracked or new, never ignored ones)."""

@@ -49,26 +49,26 @@ def report(server: LiveServer, name: str, **params: str) -> list[dict[str, Any]]
 
 
 def test_the_default_script_fills_the_four_tutorial_reports(
-    memory_api: LiveServer, capsys: pytest.CaptureFixture[str]
+    live_api: LiveServer, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    assert drive(memory_api) == 0
+    assert drive(live_api) == 0
     printed = capsys.readouterr().out.splitlines()
     assert len(printed) == 1 + 12  # the start, then 4 expressions, 4 utterances and 4 replies
     assert all("new of" in line for line in printed)
     assert sum("[fallback]" in line for line in printed) == 4
 
-    participants = report(memory_api, "participants")
+    participants = report(live_api, "participants")
     assert [(row["humanName"], row["robotName"]) for row in participants] == [("Maria", "Emotion Mirror")]
     assert participants[0]["robot"].endswith("/robot_mirror")
     assert participants[0]["interactions"] == 12  # 4 recognitions, 4 listenings, 4 responses
 
     # Every reply came from the fallback: the language model wrote none of them and is credited with none.
-    usage = report(memory_api, "ml-usage")
+    usage = report(live_api, "ml-usage")
     models = {(row["activityKind"], row["modelName"], row["version"], row["provider"]) for row in usage}
     assert models == {("emotion-recognition", "Emotion Big6 CNN", "1.0", "GSI-UPM")}
     assert len(usage) == 4
 
-    timeline = report(memory_api, "emotion-timeline")
+    timeline = report(live_api, "emotion-timeline")
     read = [row for row in timeline if row["targetKind"] == "human"]
     assert [row["category"] for row in read] == ["happiness", "surprise", "sadness", "happiness"]
     assert [row["intensity"] for row in read] == [0.92, 0.81, 0.64, 0.95]
@@ -78,7 +78,7 @@ def test_the_default_script_fills_the_four_tutorial_reports(
     mirrored = [row["category"] for row in timeline if row["targetKind"] == "robot"]
     assert mirrored == ["happiness", "surprise", "sadness", "happiness"]  # the robot mirrors what it read
 
-    conversation = report(memory_api, "conversations")
+    conversation = report(live_api, "conversations")
     said = [event.text for event in default_script().events if isinstance(event, Utterance)]
     expected = [turn for text in said for turn in (("human", text), ("robot", FALLBACK_REPLY))]
     assert [(row["speaker"], row["text"]) for row in conversation] == expected
@@ -86,22 +86,22 @@ def test_the_default_script_fills_the_four_tutorial_reports(
     assert [row["time"] for row in conversation] == sorted(row["time"] for row in conversation)
 
     # Where each reply came from is in the response activity's label.
-    replies = select_bindings(memory_api.url, RESPONSE_LABELS)
+    replies = select_bindings(live_api.url, RESPONSE_LABELS)
     assert [binding["label"]["value"] for binding in replies] == ["Reply to the user (fallback)"] * 4
 
     # The robot's mirrored emotion is told as expressed, never as analysed with a model.
     for row in timeline:
         if row["targetKind"] == "robot":
-            story = httpx.get(f"{memory_api.url}/explain", params={"iri": row["activity"]}, timeout=30).json()
+            story = httpx.get(f"{live_api.url}/explain", params={"iri": row["activity"]}, timeout=30).json()
             seed = next(step for step in story["steps"] if step["role"] == "seed")
             assert f"Emotion Mirror expressed {row['category']} 0.7" in seed["sentence"]
             assert "analysed" not in seed["sentence"] and "llama" not in seed["sentence"]
 
     # Each utterance's shared event was minted by the server's resolver, not by the client's local fallback.
-    stats = httpx.get(f"{memory_api.url}/shared-context/stats", timeout=10).json()
+    stats = httpx.get(f"{live_api.url}/shared-context/stats", timeout=10).json()
     assert (stats["active_contexts"], stats["ambiguous_contexts"]) == (len(said), 0)
     events = select_bindings(
-        memory_api.url,
+        live_api.url,
         "SELECT DISTINCT ?event WHERE { ?activity <http://schema.org/about> ?event . "
         "?event a <http://schema.org/Event> }",
     )
@@ -110,20 +110,20 @@ def test_the_default_script_fills_the_four_tutorial_reports(
     assert all(server_minted.fullmatch(binding["event"]["value"]) for binding in events)
 
 
-def test_a_script_file_is_replayed_in_time_order(memory_api: LiveServer, tmp_path: Path) -> None:
+def test_a_script_file_is_replayed_in_time_order(live_api: LiveServer, tmp_path: Path) -> None:
     script = json.loads(SAMPLE_SCRIPT.read_text(encoding="utf-8"))
     script["events"].reverse()  # written out of order: replayed by time all the same
     shuffled = tmp_path / "script.json"
     shuffled.write_text(json.dumps(script), encoding="utf-8")
 
-    assert drive(memory_api, "--script", str(shuffled)) == 0
-    assert [row["humanName"] for row in report(memory_api, "participants")] == ["Leo"]
-    timeline = report(memory_api, "emotion-timeline", threshold="0.6")
+    assert drive(live_api, "--script", str(shuffled)) == 0
+    assert [row["humanName"] for row in report(live_api, "participants")] == ["Leo"]
+    timeline = report(live_api, "emotion-timeline", threshold="0.6")
     assert [(row["time"], row["category"]) for row in timeline if row["targetKind"] == "human"] == [
         ("2026-03-11T16:30:00Z", "fear"),
         ("2026-03-11T16:30:09Z", "surprise"),
     ]
-    conversation = report(memory_api, "conversations")
+    conversation = report(live_api, "conversations")
     assert [(row["time"], row["speaker"]) for row in conversation] == [
         ("2026-03-11T16:30:02Z", "human"),
         ("2026-03-11T16:30:03.5Z", "robot"),
@@ -133,16 +133,17 @@ def test_a_script_file_is_replayed_in_time_order(memory_api: LiveServer, tmp_pat
 
 
 def test_a_bad_script_is_refused_before_anything_is_published(
-    memory_api: LiveServer, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    live_api: LiveServer, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     bad = tmp_path / "bad.json"
     bad.write_text(json.dumps({"human": {"id": "x", "name": "X"}, "events": [{"at": 0, "expression": "bored"}]}))
-    assert drive(memory_api, "--script", str(bad)) == 2
+    assert drive(live_api, "--script", str(bad)) == 2
     assert "events[0].expression 'bored' is not a Big6 emotion" in capsys.readouterr().err
-    assert report(memory_api, "participants") == []
-    assert httpx.get(f"{memory_api.url}/events", params={"format": "ntriples"}).text.strip() == ""
+    assert report(live_api, "participants") == []
+    assert httpx.get(f"{live_api.url}/events", params={"format": "ntriples"}).text.strip() == ""
 
 
+@pytest.mark.processes
 def test_an_unreachable_server_fails_with_a_clear_message() -> None:
     server = closed_port_url()
     result = subprocess.run(
@@ -158,10 +159,10 @@ def test_an_unreachable_server_fails_with_a_clear_message() -> None:
     assert result.stdout == ""
 
 
-def test_the_language_model_is_credited_only_for_the_replies_it_wrote(memory_api: LiveServer) -> None:
+def test_the_language_model_is_credited_only_for_the_replies_it_wrote(live_api: LiveServer) -> None:
     """As the tutorial logs it: `used_models=[chat_model] if reply_source == "ollama" else None`."""
     answers = iter([("Congratulations!", "ollama"), (FALLBACK_REPLY, "fallback")])
-    publisher = SEGBPublisher(base_url=memory_api.url)
+    publisher = SEGBPublisher(base_url=live_api.url)
     mission = EmotionMirrorMission.start(
         RobotConfig(),
         human_id="maria",
@@ -175,19 +176,19 @@ def test_the_language_model_is_credited_only_for_the_replies_it_wrote(memory_api
             mission.on_user_utterance(text, at + timedelta(seconds=10 * turn)), at + timedelta(seconds=10 * turn + 2)
         )
 
-    usage = report(memory_api, "ml-usage")
+    usage = report(live_api, "ml-usage")
     assert [(row["modelName"], row["activityName"]) for row in usage] == [("llama3.2", "Reply to the user (ollama)")]
-    replies = report(memory_api, "conversations")
+    replies = report(live_api, "conversations")
     generated = next(row for row in replies if row["text"] == "Congratulations!")
-    story = httpx.get(f"{memory_api.url}/explain", params={"iri": generated["message"]}, timeout=30).json()
+    story = httpx.get(f"{live_api.url}/explain", params={"iri": generated["message"]}, timeout=30).json()
     seed = next(step for step in story["steps"] if step["role"] == "seed")
     assert seed["sentence"] == "Emotion Mirror said “Congratulations!” with llama3.2 3.2"
 
 
-def test_running_the_script_again_is_warned_about(memory_api: LiveServer, capsys: pytest.CaptureFixture[str]) -> None:
-    assert drive(memory_api) == 0
+def test_running_the_script_again_is_warned_about(live_api: LiveServer, capsys: pytest.CaptureFixture[str]) -> None:
+    assert drive(live_api) == 0
     assert "warning" not in capsys.readouterr().err
-    assert drive(memory_api) == 0
+    assert drive(live_api) == 0
     printed = capsys.readouterr()
     assert "-> 0 new of 29 triples" in printed.out.splitlines()[0]
     assert "emotion_mirror: warning: the server already holds Emotion Mirror's log with Maria" in printed.err

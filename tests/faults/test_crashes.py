@@ -25,6 +25,8 @@ from tests.support.live_server import LiveServer
 from tests.support.net import free_port
 from tests.support.virtuoso import VirtuosoProcess
 
+pytestmark = pytest.mark.processes  # kills servers it started
+
 EX = "https://example.org/faults/"
 
 
@@ -44,6 +46,7 @@ class Robots:
     statuses: list[int] = field(default_factory=list)
     _stop: threading.Event = field(default_factory=threading.Event)
     _threads: list[threading.Thread] = field(default_factory=list)
+    _answered: threading.Condition = field(default_factory=threading.Condition)
 
     def start(self) -> None:
         self._threads = [threading.Thread(target=self._run, args=(robot,), daemon=True) for robot in range(self.count)]
@@ -54,6 +57,11 @@ class Robots:
         self._stop.set()
         for thread in self._threads:
             thread.join(timeout=60)
+
+    def answered(self, count: int, timeout: float = 60) -> None:
+        """Wait until `count` posts in all were answered (any status)."""
+        with self._answered:
+            assert self._answered.wait_for(lambda: len(self.statuses) >= count, timeout), "the robots got no answers"
 
     def _run(self, robot: int) -> None:
         post = 0
@@ -66,9 +74,11 @@ class Robots:
                 except httpx.HTTPError:
                     time.sleep(0.05)
                     continue
-                self.statuses.append(answer.status_code)
                 if answer.status_code == 201:
                     self.acknowledged[answer.json()["log_id"]] = turtle
+                with self._answered:
+                    self.statuses.append(answer.status_code)
+                    self._answered.notify_all()
                 time.sleep(self.pause)
 
 
@@ -198,16 +208,16 @@ def test_virtuoso_killed_and_restarted_under_sixteen_robots(tmp_path: Path) -> N
         with LiveServer(create_app(settings, store=store)) as server:
             robots = Robots(server.url, 16, pause=0.05)
             robots.start()
-            time.sleep(1.0)
+            robots.answered(32)  # every robot is posting
             virtuoso.kill()
             big = "".join(f'<{EX}large/s{n}> <{EX}p> "value {n}" .\n' for n in range(60_000))
             headers = {"Content-Type": "application/n-triples"}
             large = httpx.post(f"{server.url}/ttl", content=big, headers=headers, timeout=120)
             during = len(robots.statuses)
-            time.sleep(1.5)
+            robots.answered(during + 32)  # posts answered while Virtuoso is down
             acknowledged_while_down = len(robots.acknowledged)
             virtuoso.start()
-            time.sleep(1.0)
+            robots.answered(len(robots.statuses) + 32)  # and after it is back
             robots.stop()
             assert large.status_code == 201, large.text
             assert len(robots.statuses) > during and acknowledged_while_down > 0

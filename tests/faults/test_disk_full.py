@@ -19,6 +19,8 @@ from tests.conftest import make_settings
 from tests.faults.test_crashes import caught_up
 from tests.support.live_server import LiveServer
 
+pytestmark = pytest.mark.processes  # mounts a small disk
+
 EX = "https://example.org/full/"
 
 

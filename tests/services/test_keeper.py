@@ -36,6 +36,7 @@ class RecordingView:
         self.updates: list[tuple[int, float, float]] = []
         self.built: list[int] = []
         self.updated = threading.Condition()
+        self.began = threading.Event()  # an update is under way
 
     def stored_through(self) -> int | None:
         return 0
@@ -47,7 +48,8 @@ class RecordingView:
         if self.failing:
             raise RuntimeError("a view's bug")
         began = time.monotonic()
-        time.sleep(self.seconds)
+        self.began.set()
+        time.sleep(self.seconds)  # the update's own work
         with self.updated:
             self.updates.append((through, began, time.monotonic()))
             self.updated.notify_all()
@@ -77,7 +79,7 @@ def test_a_rest_is_cut_short_for_a_step_that_waited_through_a_slow_batch_and_kep
     projector.start()
     try:
         projector.on_applied(step(1))
-        time.sleep(0.05)
+        assert view.began.wait(timeout=10)
         projector.on_applied(step(2))  # queued while the first batch runs: by its end it waited past its time
         view.wait_for_updates(2)
         (_, _, first_ended), (through, second_began, second_ended) = view.updates

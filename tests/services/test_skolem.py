@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from pyoxigraph import NamedNode, Quad, RdfFormat, parse
@@ -137,6 +138,7 @@ def test_a_hundred_and_a_thousand_item_lists_of_one_value_keep_every_member() ->
         assert len({q.subject for q in firsts}) == size
 
 
+@pytest.mark.slow
 def test_fifty_thousand_nested_blank_nodes_stay_distinct() -> None:
     depth = 50_000
     turtle = f"<{EX}s> <{EX}p> " + f"[ <{EX}p> " * depth + '"x"' + " ]" * depth + " ."

@@ -74,6 +74,9 @@ FORBIDDEN = [
     ("SELECT * { GRAPH ?g { ?s ?p ?o } }", "graph", "GRAPH patterns"),
     ("SELECT * { ?s foaf:name ?o }", "undeclared_prefix", "'foaf:' is not declared"),
     ("  \n ", "empty", "empty"),
+    # rdflib parses these as an update of no operations: they are empty, not updates.
+    ("# what robots said\n# (nothing yet)\n", "empty", "only comments"),
+    ("PREFIX schema: <http://schema.org/>  # the query is still to write", "empty", "PREFIX declarations"),
 ]
 
 

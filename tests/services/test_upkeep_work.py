@@ -154,6 +154,7 @@ def _new(graph: Graph, seen: set[tuple[Any, ...]]) -> list[Quad]:
     return list(parse(new.serialize(format="nt").encode(), RdfFormat.N_TRIPLES))
 
 
+@pytest.mark.slow  # histories of 250 and 1,000 posts, twice
 @pytest.mark.parametrize("shape", [receptionist_posts, mirror_posts], ids=["new-visitors", "same-person"])
 def test_a_posts_upkeep_work_does_not_grow_with_the_robots_history(
     tmp_path: Path, shape: Callable[[int], list[list[Quad]]]

@@ -12,17 +12,16 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import UTC, datetime, timedelta
 
-import httpx
 from rdflib import URIRef
 from semantic_log_generator import (
     ActivityKind,
     EmotionScore,
     ModelUsage,
     RobotStateSnapshot,
-    SEGBPublisher,
     SemanticSEGBLogger,
 )
 
+from tests.support.in_process import Server, http, publisher_for
 from tests.support.settle import settle
 
 ORO = "http://kb.openrobots.org#"
@@ -59,13 +58,13 @@ class Scenario:
             if after_step is not None:
                 after_step(robot)
 
-    def publish_all(self, base_url: str, token: str | None = None) -> list[dict]:
+    def publish_all(self, server: Server, token: str | None = None) -> list[dict]:
         """Run every step, publishing the changed robot's whole graph after each; return the responses once the
-        server shows every post in its reports."""
-        publishers = {name: SEGBPublisher(base_url=base_url, token=token, default_user=name) for name in self.loggers}
+        server shows every post in its reports. `server`: a live server's URL or an in-process app's client."""
+        publishers = {name: publisher_for(server, name, token) for name in self.loggers}
         responses: list[dict] = []
         self.run_steps(lambda robot: responses.append(self.loggers[robot].publish(publishers[robot])))
-        settle(base_url)
+        settle(server)
         return responses
 
     def published_turtle(self) -> list[str]:
@@ -259,16 +258,16 @@ def lobby() -> Scenario:
     return scenario
 
 
-def keep_busy(base_url: str, robot: str, activities: int) -> None:
+def keep_busy(server: Server, robot: str, activities: int) -> None:
     """Publish `activities` activities performed by `robot`: the object of that many links, as after a month."""
     busy = "\n".join(
         f"<https://example.org/busy/a{i}> <http://www.gsi.upm.es/ontologies/segb/ns#wasPerformedBy> <{robot}> ."
         for i in range(activities)
     )
-    assert httpx.post(f"{base_url}/ttl", json={"ttl_content": busy}, timeout=60).status_code == 201
+    assert http(server, "POST", "/ttl", json={"ttl_content": busy}).status_code == 201
 
 
-def publish_message(api_url: str, text: str) -> str:
+def publish_message(server: Server, text: str) -> str:
     """What ARI logs when it hears Maria say `text`, published by the robots' client; the message's IRI."""
     robot = robot_logger("ari", "ARI")
     maria = robot.register_human("maria", first_name="Maria")
@@ -277,5 +276,5 @@ def publish_message(api_url: str, text: str) -> str:
     message = robot.log_message(
         text, message_id=f"live_{key}", sender=maria, language="en", generated_by_activity=heard
     )
-    SEGBPublisher(base_url=api_url).publish_turtle(robot.serialize())
+    publisher_for(server).publish_turtle(robot.serialize())
     return str(message)

@@ -2,16 +2,14 @@
 
 from __future__ import annotations
 
-import httpx
+from tests.support.in_process import Server, http
 
 
-def select_bindings(base_url: str, query: str) -> list[dict[str, dict[str, str]]]:
-    """The SPARQL JSON bindings of a SELECT run through `GET /sparql`."""
-    response = httpx.get(
-        f"{base_url}/sparql",
-        params={"query": query},
-        headers={"Accept": "application/sparql-results+json"},
-        timeout=30,
+def select_bindings(server: Server, query: str) -> list[dict[str, dict[str, str]]]:
+    """The SPARQL JSON bindings of a SELECT run through `GET /sparql` (a live server's URL or an in-process
+    app's client)."""
+    response = http(
+        server, "GET", "/sparql", params={"query": query}, headers={"Accept": "application/sparql-results+json"}
     )
     assert response.status_code == 200, response.text
     return response.json()["results"]["bindings"]

@@ -8,8 +8,8 @@ from typing import Any
 import httpx
 import pytest
 
-from bench.workloads import ntriples_of, replicate
 from tests.conftest import ARTIFACTS, UiStack
+from tests.support.robot_posts import ntriples_of, replicate
 from tests.support.scenarios import keep_busy, lobby
 from tests.support.settle import settle
 

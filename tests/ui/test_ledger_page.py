@@ -91,7 +91,7 @@ def test_ledger_page_pages_through_the_receipts(ui_stack: UiStack, page) -> None
 def test_ledger_page_names_the_first_broken_receipt(disk_ledger_stack: UiStack, tmp_path: Path, page) -> None:  # type: ignore[no-untyped-def]
     documents = [f"<https://example.org/i{n}> a <https://example.org/T> ." for n in range(4)]
     log_ids = [post_raw(disk_ledger_stack.api_url, document, "ari")["log_id"] for document in documents]
-    with sqlite3.connect(tmp_path / "ledger.sqlite3") as connection:
+    with sqlite3.connect(tmp_path / "journal.sqlite3") as connection:
         connection.execute("UPDATE receipts SET claimed_user = 'mallory' WHERE sequence = 2")
 
     page.goto(f"{disk_ledger_stack.ui_url}/ledger")

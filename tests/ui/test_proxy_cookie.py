@@ -12,6 +12,8 @@ from tests.cli.test_cli import SEGB, clean_env
 from tests.support.net import free_port
 from tests.support.processes import running
 
+pytestmark = pytest.mark.processes  # runs segb serve behind uvicorn's proxy handling
+
 SECRET = "p" * 40
 
 

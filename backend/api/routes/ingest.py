@@ -6,7 +6,7 @@ from fastapi import APIRouter, Request
 from fastapi.concurrency import run_in_threadpool
 from pydantic import BaseModel, Field
 
-from segb_server.backend.api.deps import Admin, LimitedBody, Logger, ServicesDep
+from segb_server.backend.api.deps import Admin, LimitedBody, Publisher, ServicesDep
 from segb_server.backend.services.ingest.payloads import DeleteAllRequest, IngestRequest, decode_ingest_body
 from segb_server.backend.services.ingest.service import IngestResult
 
@@ -70,7 +70,7 @@ _RDF_BODY = {
     },
 )
 async def publish(
-    request: Request, body: LimitedBody, services: ServicesDep, principal: Logger, user: str | None = None
+    request: Request, body: LimitedBody, services: ServicesDep, principal: Publisher, user: str | None = None
 ) -> IngestResponse:
     def work() -> tuple[IngestResult, str | None]:
         payload = decode_ingest_body(

@@ -15,7 +15,7 @@ from fastapi import APIRouter, Body, Path
 from fastapi.concurrency import run_in_threadpool
 from pydantic import BaseModel, Field, field_validator
 
-from segb_server.backend.api.deps import Admin, Auditor, Logger, ServicesDep
+from segb_server.backend.api.deps import Admin, Auditor, Publisher, ServicesDep
 from segb_server.backend.services.clock import utc_iso
 from segb_server.backend.services.errors import Conflict, InvalidParameter, NotFound
 from segb_server.backend.services.shared_context.policy import RESOLVER_VERSION, atom, epoch, scoring_text
@@ -189,7 +189,7 @@ CaseId = Annotated[str, Path(max_length=64, pattern=r"^[A-Za-z0-9_-]+$")]
         "`created`: a new context. Robots resolving the same event at once get one context."
     ),
 )
-async def resolve(request: ResolveRequest, services: ServicesDep, principal: Logger) -> ResolveResponse:
+async def resolve(request: ResolveRequest, services: ServicesDep, principal: Publisher) -> ResolveResponse:
     resolution = await run_in_threadpool(services.shared_context.resolve, request.observation(principal.username))
     return ResolveResponse(**asdict(resolution))
 

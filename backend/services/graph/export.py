@@ -54,8 +54,7 @@ def write_graph(batches: Iterable[list[Triple]], fmt: Format, graph: NamedNode) 
         if fmt.rdf == RdfFormat.N_QUADS:
             yield rdf_bytes([Quad(t.subject, t.predicate, t.object, graph) for t in triples], fmt.rdf)
         elif fmt.rdf == RdfFormat.TURTLE:
-            text = rdf_bytes(triples, fmt.rdf, PREFIXES)
-            yield text[len(header) :] if text.startswith(header) else text
+            yield _without_prefixes(rdf_bytes(triples, fmt.rdf, PREFIXES))
         elif fmt.rdf == RdfFormat.JSON_LD:
             plain = [t for t in triples if not isinstance(t.subject, Triple) and not isinstance(t.object, Triple)]
             left_out += len(triples) - len(plain)
@@ -69,3 +68,12 @@ def write_graph(batches: Iterable[list[Triple]], fmt: Format, graph: NamedNode) 
         yield b"]"
     if left_out:
         logger.warning("JSON-LD export left out %d triples holding RDF 1.2 triple terms", left_out)
+
+
+def _without_prefixes(turtle: bytes) -> bytes:
+    """A batch's Turtle without the `@prefix` lines the writer puts first (in an order of its own): the document's
+    header declared them once already."""
+    start = 0
+    while turtle.startswith(b"@prefix ", start):
+        start = turtle.index(b"\n", start) + 1
+    return turtle[start:]

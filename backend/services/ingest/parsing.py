@@ -13,11 +13,6 @@ from segb_server.backend.store.terms import term_text
 SYNTAX_NAMES = {RdfFormat.TURTLE: "Turtle", RdfFormat.N_TRIPLES: "N-Triples"}
 
 
-def parse_triples(data: bytes, rdf_format: RdfFormat, *, max_triples: int, skolem_base: str) -> list[Quad]:
-    """All triples of the document, blank nodes skolemised, in the default graph."""
-    return skolemized(data, parse_quads(data, rdf_format, max_triples=max_triples), skolem_base)
-
-
 def skolemized(data: bytes, quads: list[Quad], skolem_base: str) -> list[Quad]:
     """The quads with their blank nodes skolemised (`data` is their text, to skip the work when it has none)."""
     return skolemize(quads, skolem_base) if might_contain_blank_nodes(data) else quads

@@ -133,9 +133,15 @@ def query_rejected(
 
 
 def _not_a_query(text: str, error: ParseBaseException) -> InvalidQuery:
-    """Say why a text is not a query: a Virtuoso pragma or an update gets its own message, the rest is a
-    syntax error at the parser's position."""
+    """Say why a text is not a query: one with nothing but comments and prefixes is empty, a Virtuoso pragma or
+    an update gets its own message, the rest is a syntax error at the parser's position."""
     code = _code_only(text)
+    prologue = _PROLOGUE.match(code)
+    # Checked before updates: rdflib parses such a text as an update of no operations.
+    if prologue is not None and prologue.end() == len(code):
+        return query_rejected(
+            "empty", "The query is empty: its text holds only comments or BASE and PREFIX declarations."
+        )
     pragma = _DEFINE.search(code)
     if pragma:
         line, column = _position(text, pragma.start())

@@ -8,8 +8,8 @@ import, while only one thread exists, so pyparsing settles its internal state be
 
 from __future__ import annotations
 
-import functools
 import threading
+from functools import lru_cache, partial
 
 from pyparsing import ParseResults
 from rdflib.plugins.sparql.algebra import translatePath, translatePName, translatePrologue, translateQuery, traverse
@@ -25,8 +25,11 @@ def parse_query(text: str) -> ParseResults:
         return parseQuery(text)
 
 
+@lru_cache(maxsize=64)
 def translate_query(text: str) -> CompValue:
-    """rdflib's algebra of a SPARQL query (raises on syntax errors)."""
+    """rdflib's algebra of a SPARQL query (raises on syntax errors). Kept per text: every app built in a process
+    (a test's, a command's) plans the same report queries, a third of a second of parsing each. Shared, so
+    callers read it and never change it."""
     with _lock:
         return translateQuery(parseQuery(text)).algebra
 
@@ -34,11 +37,17 @@ def translate_query(text: str) -> CompValue:
 def exists_groups(text: str) -> list[CompValue]:
     """Every EXISTS and NOT EXISTS group of a query as written, names and property paths resolved but the groups
     not translated to algebra: rdflib's translation drops a FILTER nested in the group of an EXISTS that a BIND
-    holds (`BIND (EXISTS { ?m :p ?h FILTER EXISTS { ?h a :C } } AS ?x)` keeps only `?m :p ?h`)."""
+    holds (`BIND (EXISTS { ?m :p ?h FILTER EXISTS { ?h a :C } } AS ?x)` keeps only `?m :p ?h`). Kept per text as
+    `translate_query` is; the groups are shared, so callers read them and never change them."""
+    return list(_exists_groups(text))
+
+
+@lru_cache(maxsize=64)
+def _exists_groups(text: str) -> tuple[CompValue, ...]:
     with _lock:
         parsed = parseQuery(text)
         prologue = translatePrologue(parsed[0], None)
-        tree = traverse(parsed[1], visitPost=functools.partial(translatePName, prologue=prologue))
+        tree = traverse(parsed[1], visitPost=partial(translatePName, prologue=prologue))
         tree = traverse(tree, visitPost=translatePath)
     found: list[CompValue] = []
 
@@ -54,7 +63,7 @@ def exists_groups(text: str) -> list[CompValue]:
                 collect(item)
 
     collect(tree)
-    return found
+    return tuple(found)
 
 
 def parse_update(text: str) -> CompValue:

@@ -1,13 +1,13 @@
 """The journal: every accepted post and clearing, in order, hash-chained, each post with its new triples exactly
-as received. It is the source of truth; the triple store is a projection of it (services/ingest/applier.py).
+as received. It is the source of truth; the triple store is a projection of it (writing/applier.py).
 
 A post's entry keeps only the triples the journal did not hold yet (since the last clearing), so a robot's
 cumulative re-publish costs a membership test per triple and adds nothing. Triples are compared as received:
 their N-Triples text, original lexical forms and datatypes included. The content is stored as an N-Triples
 document compressed with zlib; the receipt covers its SHA-256.
 
-Kept in the state database (backend/state): SQLite in DATA_DIR by default, PostgreSQL when STATE_URL names one.
-All work is blocking: async callers use a worker thread.
+Kept in the state database (backend/state): SQLite in DATA_DIR by default (its file: journal_file.py), PostgreSQL
+when STATE_URL names one. All work is blocking: async callers use a worker thread.
 """
 
 from __future__ import annotations
@@ -31,7 +31,6 @@ from segb_server.backend.services.writing.receipts import (
 )
 from segb_server.backend.state.database import Database
 
-JOURNAL_FILE = "ledger.sqlite3"  # the journal grew out of the ingest ledger and keeps its file
 EMPTY_SHA256 = hashlib.sha256(b"").hexdigest()
 _ROWS_PER_INSERT = 400  # digests per INSERT statement (SQLite allows 32,766 parameters)
 _ROWS_PER_VERIFY = 1000

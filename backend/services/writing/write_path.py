@@ -19,7 +19,8 @@ from segb_server.backend.config import Settings
 from segb_server.backend.services.ops.leadership import LOCK_FILE, Leadership, SharedLeadership
 from segb_server.backend.services.upkeep.keeper import KeptView, ViewKeeper
 from segb_server.backend.services.writing.applier import Applied, Applier
-from segb_server.backend.services.writing.journal import JOURNAL_FILE, Journal
+from segb_server.backend.services.writing.journal import Journal
+from segb_server.backend.services.writing.journal_file import journal_path
 from segb_server.backend.state.opening import open_state
 from segb_server.backend.store.base import Store
 
@@ -50,7 +51,7 @@ class WritePath:
         journal = Journal(
             open_state(
                 settings.state_url,
-                None if in_memory else settings.data_dir / JOURNAL_FILE,
+                None if in_memory else journal_path(settings.data_dir),
                 writers="journal",
                 sync_full=settings.journal_sync == "full",
             ),

@@ -1,0 +1,129 @@
+"""The graph index on its own (the embedded store and the index in memory), on the client's shapes: what a node
+is and is called, the time a message borrows from its activity even when the activity's time comes later, the
+links drawn once, a clearing, and the statements it can tell in the store's place."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import pytest
+from pyoxigraph import Literal, NamedNode, Quad
+
+from segb_server.backend.services.graph.index import GraphIndex, GraphRequest
+from segb_server.backend.services.upkeep.delta import Delta
+from segb_server.backend.store.oxigraph import OxigraphStore
+from segb_server.backend.vocabulary import PREFIXES
+
+EX = "https://example.org/robots/ari/"
+RDF_TYPE = PREFIXES["rdf"] + "type"
+XSD = "http://www.w3.org/2001/XMLSchema#"
+ROBOT, HUMAN, ACTIVITY, MESSAGE = EX + "robot_ari", EX + "human_maria", EX + "activity_listen_1", EX + "message_1"
+
+
+def triple(subject: str, predicate: str, value: str | Literal) -> Quad:
+    prefix, _, local = predicate.partition(":")
+    target = value if isinstance(value, Literal) else NamedNode(value)
+    return Quad(NamedNode(subject), NamedNode(PREFIXES[prefix] + local), target)
+
+
+def a(subject: str, kind: str) -> Quad:
+    prefix, _, local = kind.partition(":")
+    return Quad(NamedNode(subject), NamedNode(RDF_TYPE), NamedNode(PREFIXES[prefix] + local))
+
+
+PEOPLE = [
+    a(ROBOT, "oro:Robot"),
+    triple(ROBOT, "schema:name", Literal("ARI", language="en")),
+    a(HUMAN, "oro:Human"),
+    triple(HUMAN, "foaf:firstName", Literal("Maria", language="en")),
+]
+SAID = [
+    a(MESSAGE, "schema:Message"),
+    triple(MESSAGE, "schema:text", Literal("Hello, ARI", language="en")),
+    triple(MESSAGE, "schema:sender", HUMAN),
+    triple(MESSAGE, "prov:wasAttributedTo", HUMAN),  # the client's PROV copy of the link
+    triple(MESSAGE, "prov:wasGeneratedBy", ACTIVITY),
+    a(ACTIVITY, "segb:LoggedActivity"),
+    triple(ACTIVITY, "segb:wasPerformedBy", ROBOT),
+]
+WHEN = [
+    triple(ACTIVITY, "prov:startedAtTime", Literal("2026-03-10T09:00:01+00:00", datatype=NamedNode(XSD + "dateTime")))
+]
+
+
+@pytest.fixture
+def store() -> Iterator[OxigraphStore]:
+    opened = OxigraphStore("urn:x:events")
+    yield opened
+    opened.close()
+
+
+def kept(store: OxigraphStore, built: list[Quad], *later: list[Quad]) -> GraphIndex:
+    """An index built from `built`, then kept current with each of `later` as one applied step."""
+    store.apply(built, 1)
+    index = GraphIndex(store, None)
+    index.build(through=1)
+    for through, quads in enumerate(later, start=2):
+        store.apply(quads, through)
+        index.update(Delta.of(quads), through)
+    return index
+
+
+def nodes(index: GraphIndex, **request: object) -> dict[str, dict[str, object]]:
+    return {str(node["id"]): node for node in index.view(GraphRequest(**request))["nodes"]}  # type: ignore[arg-type, index]
+
+
+def test_nodes_have_their_kind_and_name_and_a_message_its_activitys_time(store: OxigraphStore) -> None:
+    index = kept(store, PEOPLE + SAID + WHEN)
+    drawn = nodes(index)
+    assert {iri: (node["kind"], node["label"]) for iri, node in drawn.items()} == {
+        ROBOT: ("robot", "ARI"),
+        HUMAN: ("human", "Maria"),
+        ACTIVITY: ("activity", "activity_listen_1"),
+        MESSAGE: ("message", "Hello, ARI"),
+    }
+    assert drawn[MESSAGE]["time"] == drawn[ACTIVITY]["time"]
+    edges = {(e["source"], e["label"], e["target"]) for e in index.view(GraphRequest())["edges"]}  # type: ignore[index]
+    assert (MESSAGE, "sender", HUMAN) in edges and (MESSAGE, "wasAttributedTo", HUMAN) not in edges  # drawn once
+    assert (ACTIVITY, "wasPerformedBy", ROBOT) in edges
+    index.close()
+
+
+def test_a_time_that_comes_later_reaches_the_message_that_borrows_it(store: OxigraphStore) -> None:
+    index = kept(store, PEOPLE + SAID, WHEN)
+    assert "time" in nodes(index)[MESSAGE]
+    assert nodes(index, since="2026-03-10T09:00:00Z", types=("message",)).keys() == {MESSAGE}
+    assert nodes(index, since="2026-03-10T10:00:00Z", types=("message",)) == {}
+    assert index.stored_through() == 2
+    index.close()
+
+
+def test_the_index_kept_current_draws_what_a_fresh_one_draws(store: OxigraphStore) -> None:
+    index = kept(store, PEOPLE, SAID, WHEN)
+    fresh = GraphIndex(store, None)
+    fresh.build(through=3)
+    for request in (GraphRequest(), GraphRequest(focus=HUMAN, depth=2), GraphRequest(robot=ROBOT)):
+        assert index.view(request) == fresh.view(request), request
+    index.close()
+    fresh.close()
+
+
+def test_a_clearing_empties_it_and_what_follows_is_drawn_again(store: OxigraphStore) -> None:
+    index = kept(store, PEOPLE + SAID + WHEN)
+    store.clear(through=2)
+    index.clear(through=2)
+    assert nodes(index) == {} and index.stored_through() == 2
+    store.apply(PEOPLE, 3)
+    index.update(Delta.of(PEOPLE), 3)
+    assert nodes(index).keys() == {ROBOT, HUMAN}
+    index.close()
+
+
+def test_its_statements_stand_in_for_the_stores_about_a_node(store: OxigraphStore) -> None:
+    index = kept(store, PEOPLE + SAID + WHEN)
+    outgoing, incoming = index.statements([MESSAGE], incoming={PREFIXES["prov"] + "wasGeneratedBy"}, incoming_limit=5)
+    told = {(str(row["predicate"].value), str(row["value"].value)) for row in outgoing}  # type: ignore[union-attr]
+    assert (PREFIXES["schema"] + "sender", HUMAN) in told
+    assert (PREFIXES["schema"] + "text", "Hello, ARI") in told  # a literal that names the node, kept whole
+    assert incoming == []  # nothing is generated by the message
+    index.close()

@@ -1,0 +1,93 @@
+"""The journal on its own, in memory: posts chained in order with only their new triples, a clearing that forgets
+them, entries read back as the applier reads them, the chain verified, the size limit held."""
+
+from __future__ import annotations
+
+import uuid
+
+import pytest
+from pyoxigraph import Literal, NamedNode, Quad
+
+from segb_server.backend.services.ingest.service import post_entry
+from segb_server.backend.services.writing.journal import Journal, PostEntry, StorageFull
+from segb_server.backend.services.writing.receipts import GENESIS_HASH
+from segb_server.backend.state.sqlite import SqliteDatabase
+
+EX = "https://example.org/"
+
+
+def quad(subject: str, value: str) -> Quad:
+    return Quad(NamedNode(EX + subject), NamedNode(EX + "says"), Literal(value))
+
+
+def post(*quads: Quad, user: str = "ari") -> PostEntry:
+    return post_entry(list(quads), user, None, "0" * 64)
+
+
+@pytest.fixture
+def journal() -> Journal:
+    return Journal(SqliteDatabase(None))
+
+
+def test_posts_are_chained_in_order_and_keep_only_their_new_triples(journal: Journal) -> None:
+    first, again, more = journal.append_posts(
+        [post(quad("a", "hi")), post(quad("a", "hi")), post(quad("a", "hi"), quad("b", "bye"))]
+    )
+    assert [r.sequence for r in (first, again, more)] == [1, 2, 3]  # type: ignore[union-attr]
+    assert [(r.triples_received, r.triples_new) for r in (first, again, more)] == [(1, 1), (1, 0), (2, 1)]  # type: ignore[union-attr]
+    assert first.previous_hash == GENESIS_HASH and again.previous_hash == first.receipt_hash  # type: ignore[union-attr]
+    entries = journal.entries_after(0, 10)
+    assert [entry.content for entry in entries] == [
+        f'<{EX}a> <{EX}says> "hi" .\n'.encode(),
+        b"",
+        f'<{EX}b> <{EX}says> "bye" .\n'.encode(),
+    ]
+    assert journal.head() == 3 and [e.sequence for e in journal.entries_after(1, 1)] == [2]
+
+
+def test_a_clearing_forgets_the_triples_so_they_may_come_again(journal: Journal) -> None:
+    journal.append_posts([post(quad("a", "hi"), quad("b", "bye"))])
+    cleared = journal.append_clear(log_id="clear-1", user="admin", claimed_user=None)
+    (again,) = journal.append_posts([post(quad("a", "hi"))])
+    assert (cleared.action, cleared.triples_removed) == ("delete_all", 2)
+    assert again.triples_new == 1  # type: ignore[union-attr]
+    assert journal.last_clearing() == 2
+    assert list(journal.received_documents()) == [f'<{EX}a> <{EX}says> "hi" .\n'.encode()]  # since the clearing
+
+
+def test_a_post_that_fails_alone_leaves_the_others_chained(journal: Journal) -> None:
+    hostile = post(quad("evil", "x"), user="\ud800")  # a lone surrogate: legal in JSON, not storable text
+    outcomes = journal.append_posts([post(quad("a", "hi")), hostile, post(quad("b", "bye"))])
+    assert [type(outcome).__name__ for outcome in outcomes] == ["Receipt", "UnicodeEncodeError", "Receipt"]
+    assert [outcome.sequence for outcome in outcomes if not isinstance(outcome, BaseException)] == [1, 2]
+    assert journal.head() == 2 and journal.verify().valid
+    (again,) = journal.append_posts([post(quad("evil", "x"))])
+    assert again.triples_new == 1  # type: ignore[union-attr]  # nothing of the failed post was kept
+
+
+def test_verify_finds_an_edited_receipt_and_an_edited_content(journal: Journal) -> None:
+    journal.append_posts([post(quad("a", "hi")), post(quad("b", "bye"))])
+    assert journal.verify(deep=True).valid and journal.verify().receipts == 2
+    journal.database.execute("UPDATE receipts SET content = ? WHERE sequence = 2", (b"",))
+    assert journal.verify().valid  # the receipts themselves are whole
+    broken = journal.verify(deep=True).first_broken
+    assert broken is not None and (broken.sequence, broken.reason) == (2, "content does not match")
+    journal.database.execute("UPDATE receipts SET triples_new = 9 WHERE sequence = 1")
+    broken = journal.verify().first_broken
+    assert broken is not None and (broken.sequence, broken.reason) == (1, "hash mismatch")
+
+
+def test_receipts_are_paged_newest_first_and_opened_by_log_id(journal: Journal) -> None:
+    receipts = journal.append_posts([post(quad(str(n), "x")) for n in range(5)])
+    page, total = journal.page(limit=2, offset=1)
+    assert total == 5 and [r.sequence for r in page] == [4, 3]
+    receipt, content = journal.entry(receipts[0].log_id)  # type: ignore[union-attr]
+    assert receipt == receipts[0] and content == f'<{EX}0> <{EX}says> "x" .\n'.encode()
+
+
+def test_past_its_size_limit_the_journal_refuses_the_post_and_keeps_nothing_of_it() -> None:
+    journal = Journal(SqliteDatabase(None), max_bytes=32 * 1024)
+    big = [quad(f"s{n}", uuid.uuid4().hex * 4) for n in range(1000)]  # random: no compression makes it fit
+    with pytest.raises(StorageFull, match="JOURNAL_MAX_BYTES"):
+        journal.append_posts([post(*big)])
+    assert journal.head() == 0 and journal.storage_problem is not None
