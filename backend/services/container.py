@@ -18,18 +18,25 @@ from segb_server.backend.services.shared_context.service import SharedContextSer
 from segb_server.backend.services.shared_context.state import STATE_FILE
 from segb_server.backend.services.sparql.catalog import Catalog
 from segb_server.backend.services.sparql.runner import QueryRunner, query_runner
+from segb_server.backend.services.timeline.kinds import FOLDER as TIMELINE_FOLDER
+from segb_server.backend.services.timeline.kinds import KINDS, query_name
+from segb_server.backend.services.timeline.service import TimelineService
+from segb_server.backend.services.timeline.sources import KeptSource
+from segb_server.backend.services.upkeep.keeper import KeptView
 from segb_server.backend.services.upkeep.kept_queries.projection import KeptQueries
 from segb_server.backend.services.upkeep.kept_queries.rows import KeptRows
 from segb_server.backend.services.writing.write_path import WritePath
 from segb_server.backend.state.opening import open_state
 from segb_server.backend.store.base import Store
 
-# What the reports, the graph explorer and the explanations run; without them the server must not start.
-REQUIRED_QUERIES = ("reports/", "graph/resource-in", "graph/resource-out")
+# What the reports, the timeline, the graph explorer and the explanations run; without them the server must not
+# start.
+REQUIRED_QUERIES = ("reports/", f"{TIMELINE_FOLDER}/", "graph/resource-in", "graph/resource-out")
 # Stores written only through this server (the journal's applier), whose cached results a write invalidates.
 OWNED_STORES = {"oxigraph", "memory"}
 REPORTS_FILE = "reports.sqlite3"  # the reports' rows, kept current; rebuilt from the store when missing
 GRAPH_FILE = "graph.sqlite3"  # the graph index, likewise
+TIMELINE_FILE = "timeline.sqlite3"  # the timeline's rows, one table per kind, likewise
 
 
 @dataclass
@@ -40,10 +47,12 @@ class Services:
     writes: WritePath  # journal → store → views, and which process does what
     ingest: IngestService
     reports: ReportService
+    timeline: TimelineService
     graph: GraphService
     explain: ExplainService
     shared_context: SharedContextService
     queries: QueryRunner
+    timeline_rows: KeptQueries  # the timeline's kinds kept as rows (its live stream reads their changes)
     server_log: ServerLog | None = None  # the API's own log; None where nothing serves it (the CLI, the demo)
 
     def start(self) -> None:
@@ -56,6 +65,7 @@ class Services:
         self.graph.close()
         if self.reports.maintainer is not None:
             self.reports.maintainer.rows.close()
+        self.timeline_rows.rows.close()
         self.queries.close()
         self.shared_context.close()
 
@@ -67,11 +77,21 @@ def build_services(
     catalog = catalog or Catalog(settings.sparql_dir, required=REQUIRED_QUERIES)
     folder = None if settings.store == "memory" else settings.data_dir  # views of a memory store: temporary files
     kept_reports = KeptQueries(store, KeptRows(folder and folder / REPORTS_FILE))
+    kept_timeline = KeptQueries(store, KeptRows(folder and folder / TIMELINE_FILE))
+    timeline = timeline_sources(catalog, store, kept_timeline)
     index = GraphIndex(store, folder and folder / GRAPH_FILE, detail_literals=TOLD_LITERALS)
     if settings.keep_views:
         for query in catalog.under(REPORTS_FOLDER):
             kept_reports.add(query)
-        writes = WritePath.open(settings, store, [*kept_reports.views(), index], kept_reports.drop_unkept)
+        for source in timeline:
+            kept_timeline.add(source.query)
+
+        def housekeeping() -> None:
+            kept_reports.drop_unkept()
+            kept_timeline.drop_unkept()
+
+        views: list[KeptView] = [*kept_reports.views(), *kept_timeline.views(), index]
+        writes = WritePath.open(settings, store, views, housekeeping)
     else:  # nothing kept; the rows kept before stay as they are for when views are on again
         writes = WritePath.open(settings, store, [])
     version = DataVersion()
@@ -94,6 +114,8 @@ def build_services(
             max_backlog=settings.journal_max_backlog,
         ),
         reports=ReportService(catalog, store, cache, kept_reports),
+        timeline=TimelineService(timeline, kept_timeline.rows.last_change),
+        timeline_rows=kept_timeline,
         graph=graph,
         explain=ExplainService(graph),
         shared_context=SharedContextService.open(
@@ -109,3 +131,9 @@ def build_services(
         ),
         server_log=server_log,
     )
+
+
+def timeline_sources(catalog: Catalog, store: Store, kept: KeptQueries) -> list[KeptSource]:
+    """One source per kind of event that has a query (`sparql/timeline/<kind>.rq`)."""
+    names = {query.name for query in catalog.under(TIMELINE_FOLDER)}
+    return [KeptSource(kind, catalog.get(query_name(kind)), kept, store) for kind in KINDS if query_name(kind) in names]
