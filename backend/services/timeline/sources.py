@@ -10,16 +10,16 @@ source once their service exists (see docs/timeline.md).
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Protocol
 
 from pyoxigraph import NamedNode
 
-from segb_server.backend.services.errors import Conflict
+from segb_server.backend.services.errors import Conflict, ViewNotReady
 from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, CatalogQuery
 from segb_server.backend.services.sparql.paging import evaluated_page
-from segb_server.backend.services.timeline.events import TimelineEvent
-from segb_server.backend.services.upkeep.kept_queries.plan import declared_key
+from segb_server.backend.services.timeline.events import TimelineEvent, moment
+from segb_server.backend.services.upkeep.kept_queries.plan import declared_key, plan_report
 from segb_server.backend.services.upkeep.kept_queries.projection import KeptQueries
 from segb_server.backend.services.values import JsonValue, json_value
 from segb_server.backend.store.base import Bindings, SelectResult, Store, select
@@ -51,6 +51,11 @@ class Window:
     def values(self, parameters: Mapping[str, object]) -> dict[str, str | None]:
         given = {"robot": self.robot, "human": self.human, "since": self.since, "until": self.until}
         return {name: value for name, value in given.items() if name in parameters}
+
+    def holds(self, time: str) -> bool:
+        """Whether `time` is in the window (both ends included)."""
+        instant = moment(time)
+        return not (self.since and instant < moment(self.since)) and not (self.until and instant > moment(self.until))
 
     def given(self) -> set[str]:
         return {name for name in ("robot", "human", "since", "until") if getattr(self, name) is not None}
@@ -93,6 +98,8 @@ class KeptSource:
         self.store = store
         self.parameters = query.parameters
         self.key = declared_key(query)[0][1:]  # the variable its rows are kept by, e.g. `message`
+        # Each parameter's column and comparison (`FILTER (!BOUND(?param_x) || ?column <op> ?param_x)`).
+        self.filters = {f.parameter: (f.column[1:], f.op) for f in plan_report(query).column_filters}
 
     def bindings(self, window: Window) -> Bindings:
         return self.query.bindings(window.values(self.parameters))
@@ -101,15 +108,56 @@ class KeptSource:
         return KeptReader(self, self.bindings(window), position, chunk)
 
     def events_of(self, window: Window, keys: list[str]) -> list[TimelineEvent]:
-        # Asked of the store, with the window bound as the query binds it: whether an activity involves a
-        # human is a join the rows do not hold.
-        text = bind_values(self.query.text, self.bindings(window))
-        events: list[TimelineEvent] = []
+        """The keys' events as they are now, held to the window as a page holds them: their rows read from the
+        store as the rows are kept (every parameter unbound, the keys bound), then, at each of their times, the
+        window's page of the kept rows keeps those it holds (whether an activity involves a human is a join the
+        rows alone do not tell; the page knows it)."""
+        text = bind_values(self.query.text, {PARAMETER_VARIABLE_PREFIX + name: None for name in self.parameters})
+        current: list[TimelineEvent] = []
         for start in range(0, len(keys), KEYS_PER_QUERY):
             chunk = [[NamedNode(key)] for key in keys[start : start + KEYS_PER_QUERY]]
             bound = bind_rows(text, [self.key], chunk, wrap=self.store.wraps_values)  # type: ignore[arg-type]
-            events += grouped(self.kind, self.key, json_rows(select(self.store, bound)))
+            current += grouped(self.kind, self.key, json_rows(select(self.store, bound)))
+        wanted = set(keys)
+        events: list[TimelineEvent] = []
+        for time in sorted({event.time for event in current if window.holds(event.time)}, key=moment):
+            held = self._held(window, time, wanted)
+            events += held if held is not None else [e for e in current if e.time == time and self._admits(window, e)]
         return events
+
+    def _held(self, window: Window, time: str, keys: set[str]) -> list[TimelineEvent] | None:
+        """The events about `keys` at `time` that the window's page of the kept rows holds; None while the rows
+        are not kept."""
+        if (window.since and moment(time) < moment(window.since)) or (
+            window.until and moment(time) > moment(window.until)
+        ):
+            return []
+        at = replace(window, since=time, until=time)
+        bindings = self.bindings(at)
+        bound = {name: bindings[PARAMETER_VARIABLE_PREFIX + name] for name in self.parameters}
+        rows: list[Row] = []
+        after: str | None = None
+        while True:
+            page = self.kept.page(self.query.name, bound, MAX_CHUNK, 0, after)
+            if page is None:
+                return None
+            rows += [row for row in page.rows if str(row.get(self.key)) in keys]
+            if not page.has_more:
+                return grouped(self.kind, self.key, rows)
+            after = page.after
+
+    def _admits(self, window: Window, event: TimelineEvent) -> bool:
+        """While the rows are being built: the window's column filters, compared here; a filter the rows do not
+        hold as a column (a facet) admits nothing, rather than an event the window may not hold."""
+        for parameter, value in window.values(self.parameters).items():
+            if value is None:
+                continue
+            if parameter not in self.filters:
+                return False
+            column, op = self.filters[parameter]
+            if op == "=" and value not in [row.get(column) for row in event.rows]:
+                return False  # (a time's window is held by the caller)
+        return True
 
 
 def json_rows(result: SelectResult) -> list[Row]:
@@ -213,6 +261,17 @@ class KeptReader:
                 self.at = (index + 1, 0)
                 index, row = self.at
 
+    def _check_evaluable(self) -> None:
+        """A filter the rows keep as facets (whether an activity involves a human) is an EXISTS in the query, which
+        a store that skips the filters of a group opening with VALUES (Virtuoso 7: `wraps_values`) answers as
+        false: there, such a window waits for the rows rather than miss its events."""
+        facets = [name for name in self.source.parameters if name not in self.source.filters]
+        given = [name for name in facets if self.bindings[PARAMETER_VARIABLE_PREFIX + name] is not None]
+        if given and self.source.store.wraps_values:
+            raise ViewNotReady(
+                f"The timeline's {self.source.kind} events of one {given[0]} are being built; ask again in a moment."
+            )
+
     def _read(self, start: Position) -> _Chunk:
         limit, self.chunk = self.chunk, min(self.chunk * 2, MAX_CHUNK)
         if self.served_from == "rows":
@@ -226,6 +285,7 @@ class KeptReader:
                     "now; start again from the first page (without `after`)."
                 )
             self.served_from = "query"  # being built: the query answers meanwhile
+        self._check_evaluable()
         offset = int(start["offset"]) if start else 0
         result = evaluated_page(self.source.store, self.source.query.text, self.bindings, limit + 1, offset)
         rows = json_rows(result)
