@@ -31,6 +31,7 @@ from segb_server.ui.routes import (
     reports,
     session,
     shared_context,
+    timeline,
 )
 from segb_server.ui.security import SecurityHeaders
 from segb_server.ui.session import ViewerCache, ViewerMiddleware
@@ -41,6 +42,7 @@ ROUTERS = [
     home.router,
     health.router,
     reports.router,
+    timeline.router,
     graph.router,
     session.router,
     ledger.router,
