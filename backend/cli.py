@@ -109,6 +109,13 @@ def _parser() -> argparse.ArgumentParser:
     token.add_argument("--json", action="store_true", help="print token, username, roles, scopes, exp as JSON")
     token.set_defaults(handler=_token)
 
+    upkeep = commands.add_parser(
+        "upkeep", help="tell how a report's rows are kept current as robots write (or why it is evaluated in full)"
+    )
+    upkeep.add_argument("report", nargs="?", help="a report's name, e.g. conversations (default: every report)")
+    upkeep.add_argument("--sparql-dir", type=Path, help="directory of the .rq files (SPARQL_DIR)")
+    upkeep.set_defaults(handler=_upkeep)
+
     demo = commands.add_parser("demo", help="publish the demo dataset (robots ARI and TIAGo) to a running server")
     demo.add_argument("--server", help="API base URL (default http://127.0.0.1:<API_PORT>)")
     demo.add_argument("--token", help="bearer token with the logger role, when the server has SECRET_KEY set")
@@ -219,6 +226,22 @@ def _rebuild(args: argparse.Namespace) -> int:
         writes.apply_now()
         applied = writes.applied
         print(f"{store.kind} store rebuilt from the journal through entry {applied}: {store.count()} triples")
+    return 0
+
+
+def _upkeep(args: argparse.Namespace) -> int:
+    from segb_server.backend.services.reports.service import FOLDER
+    from segb_server.backend.services.sparql.catalog import Catalog
+    from segb_server.backend.services.upkeep.kept_queries.describe import describe
+
+    catalog = Catalog(_settings(args, "sparql_dir").sparql_dir)
+    reports = catalog.under(FOLDER)
+    if args.report is not None:
+        reports = [query for query in reports if query.name == f"{FOLDER}/{args.report}"]
+        if not reports:
+            names = ", ".join(query.name.removeprefix(f"{FOLDER}/") for query in catalog.under(FOLDER))
+            return _fail(f"no report named {args.report!r}; reports: {names}")
+    print("\n\n".join("\n".join(describe(query)) for query in reports))
     return 0
 
 

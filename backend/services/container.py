@@ -113,7 +113,7 @@ def build_services(
             apply_timeout=settings.ingest_apply_timeout_seconds,
             max_backlog=settings.journal_max_backlog,
         ),
-        reports=ReportService(catalog, store, cache, kept_reports),
+        reports=ReportService(catalog, store, cache, kept_reports, lag=writes.lag),
         timeline=TimelineService(timeline, kept_timeline.rows.last_change),
         timeline_rows=kept_timeline,
         graph=graph,

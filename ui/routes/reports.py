@@ -58,6 +58,20 @@ def live_after(tables: list[dict[str, Any]]) -> str:
     return str(min(seen)) if seen else ""
 
 
+def behind(tables: list[dict[str, Any]]) -> str | None:
+    """What the page says when its rows do not include everything robots have published yet (the server is
+    catching up): how far behind, in time and in posts."""
+    lags = [table["behind"] for table in tables if table.get("behind")]
+    if not lags:
+        return None
+    worst = max(lags, key=lambda lag: (lag["seconds"], lag["entries"]))
+    posts = worst["entries"]
+    return (
+        f"These rows are {worst['seconds']:.1f} s behind what robots have published ({posts} "
+        f"{'post' if posts == 1 else 'posts'} on the way): the server is catching up."
+    )
+
+
 def _supported(filters: dict[str, str], described: dict[str, Any]) -> dict[str, str]:
     accepted = {parameter["name"] for parameter in described["parameters"]}
     return {name: value for name, value in filters.items() if name in accepted}
@@ -90,6 +104,7 @@ async def reports_overview(request: Request) -> HTMLResponse:
             "choices": choices,
             "query": request.url.query,
             "live_after": live_after(tables),
+            "behind": behind(tables),
         },
     )
 
@@ -118,6 +133,7 @@ async def one_report(request: Request, name: str) -> HTMLResponse:
             "limit": limit,
             "offset": offset,
             "live_after": live_after([table]),
+            "behind": behind([table]),
         },
     )
 

@@ -63,6 +63,7 @@ class CatalogQuery:
     description: str
     text: str
     parameters: dict[str, Parameter] = field(default_factory=dict)
+    same_as: str | None = None  # a preset's base: the query whose text and parameters it has
 
     def bindings(self, values: Mapping[str, str | None]) -> Bindings:
         """Typed terms for the given values (strings from a query string); 422 naming a bad parameter."""
@@ -149,7 +150,8 @@ def _resolve(name: str, headers: dict[str, _Header]) -> CatalogQuery:
         if base is None or "same-as" in base.meta:
             raise ValueError(f"{name}.rq: same-as names '{base_name}', which is not a query of its own")
         text, parameters = base.text, {**base.parameters, **header.parameters}
-    return CatalogQuery(name, header.meta.get("title", name), header.meta.get("description", ""), text, parameters)
+    title, description = header.meta.get("title", name), header.meta.get("description", "")
+    return CatalogQuery(name, title, description, text, parameters, header.meta.get("same-as"))
 
 
 class CatalogError(ServiceError):

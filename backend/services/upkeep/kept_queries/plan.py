@@ -99,6 +99,18 @@ class ReportPlan:
     def is_aggregate(self) -> bool:
         return bool(self.aggregates)
 
+    def unit(self) -> str:
+        """The variable (without ?) whose values identify the rows kept: the key, or for an aggregate what its
+        one COUNT(DISTINCT …) counts (its contributions are kept by it). Unsupported when there is none."""
+        if self.is_aggregate:
+            counted = [a for a in self.aggregates if a.function == "count" and a.distinct]
+            if len(counted) != 1:
+                raise Unsupported("an aggregate report needs one COUNT(DISTINCT ?x) to keep its contributions by")
+            return counted[0].argument[1:]
+        if len(self.key) != 1:
+            raise Unsupported("a report's key is one variable")
+        return self.key[0][1:]
+
     def guaranteed_patterns(self, pattern: Pattern) -> list[Pattern]:
         """The patterns that hold in every solution in which `pattern` is matched."""
         return [found for group in self.guaranteed[pattern.group] for found in self.mandatory.get(group, [])]
