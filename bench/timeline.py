@@ -59,7 +59,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeats", type=int, default=30, help="times each request is measured")
     parser.add_argument("--output", type=Path, default=ROOT / "docs/performance.md")
     args = parser.parse_args(argv)
-    started, load_at_start = time.perf_counter(), machine()
+    started, load_at_start, code = time.perf_counter(), machine(), code_version()
     gc.disable()  # as the bench does: the client's collections would count in whichever request was in flight
     with tempfile.TemporaryDirectory(prefix="segb-bench-timeline-") as scratch:
         root = Path(scratch)
@@ -69,7 +69,8 @@ def main(argv: list[str] | None = None) -> int:
         runs = [measure(root / "data", "every kind kept", {}, args.repeats, "live")]
         runs.append(measure(root / "data", "only states kept", one_kind(root), args.repeats, "live2"))
     gc.enable()
-    text = section(triples, load_seconds, runs, time.perf_counter() - started, load_at_start, argv or sys.argv[1:])
+    wall = time.perf_counter() - started
+    text = section(triples, load_seconds, runs, wall, {**load_at_start, "code": code}, argv or sys.argv[1:])
     write_section(args.output, text)
     print(text)
     return 0
@@ -200,7 +201,7 @@ def section(
         f"<!-- section: {SECTION} -->",
         "### 7. The investigator's timeline under live ingest",
         "",
-        f"Measured {datetime.now(UTC):%Y-%m-%d} with `{command}` ({wall:.0f} s), {code_version()}, on the embedded"
+        f"Measured {datetime.now(UTC):%Y-%m-%d} with `{command}` ({wall:.0f} s), {at_start['code']}, on the embedded"
         f" store loaded with `segb import` ({triples:,} triples, {load_seconds:.0f} s): the reports' dataset of"
         f" section 5. Machine: {at_start['cpu']}, load average at start {at_start['load average at start']}. While"
         f" the timeline is measured another robot publishes {LIVE_RATE:g} posts a second. The window is one robot's"
