@@ -9,7 +9,6 @@ import json
 import random
 import re
 from collections import Counter
-from collections.abc import Iterator
 from pathlib import Path
 
 import httpx
@@ -20,11 +19,10 @@ from segb_server.backend.api.app import create_app
 from segb_server.backend.config import PACKAGE_ROOT
 from segb_server.backend.services.sparql.catalog import Catalog
 from segb_server.backend.services.values import json_value
-from segb_server.backend.store.base import Store
 from segb_server.backend.store.oxigraph import OxigraphStore
 from segb_server.backend.store.terms import bind_values
-from tests.conftest import STORE_KINDS, make_settings, virtuoso_store
-from tests.support.histories import EX, HUMANS, ROBOTS, History
+from tests.conftest import make_settings
+from tests.support.histories import EX, HUMANS, ROBOTS, History, send
 from tests.support.live_server import LiveServer
 from tests.support.settle import settle
 
@@ -74,32 +72,13 @@ def bound_text(name: str, params: dict[str, str]) -> str:
     return bind_values(query.text, query.bindings(params))
 
 
-@pytest.fixture(params=STORE_KINDS)
-def server(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[str]:
-    if request.param == "virtuoso":
-        store: Store = virtuoso_store(request.getfixturevalue("virtuoso"))
-    else:
-        store = OxigraphStore("http://amor-segb/events", tmp_path / "oxigraph")
-    with LiveServer(create_app(make_settings(store=request.param, data_dir=tmp_path), store=store)) as live:
-        yield live.url
-    if request.param == "virtuoso":
-        store.clear()
-    store.close()
-
-
 @pytest.mark.parametrize("seed", [1, 2])
-def test_reports_equal_their_full_evaluation_after_every_step(server: str, seed: int) -> None:
+def test_reports_equal_their_full_evaluation_after_every_step(store_server: str, seed: int) -> None:
+    server = store_server
     history = History(seed)
     speakers: dict[object, set[object]] = {}  # each message's speakers over the steps: late links change them
     for step in range(16):
-        post = history.next_post()
-        if post is None:
-            assert httpx.post(f"{server}/ttl/delete_all", json={}).status_code == 200
-        else:
-            answer = httpx.post(
-                f"{server}/ttl", content="\n".join(post), headers={"Content-Type": "application/n-triples"}
-            )
-            assert answer.status_code == 201, answer.text
+        send(server, history.next_post())
         settle(server)
         variants = [{}]
         if step % 4 == 3:

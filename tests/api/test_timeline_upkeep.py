@@ -6,43 +6,23 @@ from __future__ import annotations
 
 import random
 from collections import Counter
-from collections.abc import Iterator
-from pathlib import Path
 
 import httpx
 import pytest
 from pyoxigraph import QuerySolutions, RdfFormat
 from pyoxigraph import Store as OxStore
 
-from segb_server.backend.api.app import create_app
 from segb_server.backend.config import PACKAGE_ROOT
 from segb_server.backend.services.sparql.catalog import Catalog
 from segb_server.backend.services.timeline.events import moment
 from segb_server.backend.services.upkeep.kept_queries.plan import declared_key
 from segb_server.backend.services.values import json_value
-from segb_server.backend.store.base import Store
-from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.api.test_reports_differential import bound_text
-from tests.conftest import STORE_KINDS, make_settings, virtuoso_store
-from tests.support.histories import EX, HUMANS, ROBOTS, History
-from tests.support.live_server import LiveServer
+from tests.support.histories import EX, HUMANS, ROBOTS, History, send
 from tests.support.settle import settle
 
 CATALOG = Catalog(PACKAGE_ROOT / "sparql")
 KINDS = {query.name.removeprefix("timeline/"): query for query in CATALOG.under("timeline")}
-
-
-@pytest.fixture(params=STORE_KINDS)
-def server(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[str]:
-    if request.param == "virtuoso":
-        store: Store = virtuoso_store(request.getfixturevalue("virtuoso"))
-    else:
-        store = OxigraphStore("http://amor-segb/events", tmp_path / "oxigraph")
-    with LiveServer(create_app(make_settings(store=request.param, data_dir=tmp_path), store=store)) as live:
-        yield live.url
-    if request.param == "virtuoso":
-        store.clear()
-    store.close()
 
 
 def timeline(url: str, params: dict[str, str], page: int) -> list[dict[str, object]]:
@@ -89,17 +69,11 @@ def evaluated_events(copy: OxStore, params: dict[str, str]) -> Counter[tuple[str
 
 
 @pytest.mark.parametrize("seed", [3, 4])
-def test_the_timeline_equals_its_queries_evaluated_in_full_after_every_step(server: str, seed: int) -> None:
+def test_the_timeline_equals_its_queries_evaluated_in_full_after_every_step(store_server: str, seed: int) -> None:
+    server = store_server
     history = History(seed)
     for step in range(14):
-        post = history.next_post()
-        if post is None:
-            assert httpx.post(f"{server}/ttl/delete_all", json={}).status_code == 200
-        else:
-            answer = httpx.post(
-                f"{server}/ttl", content="\n".join(post), headers={"Content-Type": "application/n-triples"}
-            )
-            assert answer.status_code == 201, answer.text
+        send(server, history.next_post())
         settle(server)
         rng = random.Random(seed * 100 + step)
         variants = [{"robot": f"{EX}robot/{rng.choice(ROBOTS)}"}, {"human": f"{EX}human/{rng.choice(HUMANS)}"}]
@@ -114,18 +88,12 @@ def test_the_timeline_equals_its_queries_evaluated_in_full_after_every_step(serv
             assert instants == sorted(instants), (step, params, "out of time order")
 
 
-def test_message_speakers_are_the_conversations_reports(server: str) -> None:
+def test_message_speakers_are_the_conversations_reports(store_server: str) -> None:
+    server = store_server
     history = History(2)
     speakers: set[str] = set()
     for _ in range(8):
-        post = history.next_post()
-        if post is None:
-            assert httpx.post(f"{server}/ttl/delete_all", json={}).status_code == 200
-        else:
-            answer = httpx.post(
-                f"{server}/ttl", content="\n".join(post), headers={"Content-Type": "application/n-triples"}
-            )
-            assert answer.status_code == 201, answer.text
+        send(server, history.next_post())
         settle(server)
         speakers |= same_speakers(server)
     assert speakers == {"human", "robot", "unidentified"}  # the history reached each

@@ -4,11 +4,12 @@ and GET /timeline/stream: the window's events as they change, live."""
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from datetime import UTC, datetime
 from typing import Annotated
 
 import anyio
-from fastapi import APIRouter, Query, Request
+from fastapi import APIRouter, Depends, Query, Request
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import Response, StreamingResponse
 
@@ -36,11 +37,29 @@ FORMATS = (
 )
 VIEWER = {"js": "text/javascript", "css": "text/css"}  # the viewer's files, which the web UI's page loads
 
-Robot = Annotated[str | None, Query(description="The robot whose timeline this is (an IRI)")]
-Human = Annotated[str | None, Query(description="The human whose timeline this is (an IRI); `robot` or `human`")]
-Since = Annotated[str | None, Query(description="Only events at or after this time (ISO 8601 with a zone)")]
-Until = Annotated[str | None, Query(description="Only events at or before this time (ISO 8601 with a zone)")]
-Kinds = Annotated[list[str], Query(description="Only these kinds of events (repeatable, or comma-separated)")]
+
+@dataclass(frozen=True)
+class Asked:
+    """What a timeline request asks for: its window (checked) and its kinds."""
+
+    window: Window
+    kinds: list[str]
+
+
+async def asked(
+    services: ServicesDep,
+    robot: Annotated[str | None, Query(description="The robot whose timeline this is (an IRI)")] = None,
+    human: Annotated[str | None, Query(description="The human whose timeline this is (an IRI); robot or human")] = None,
+    since: Annotated[str | None, Query(description="Only events at or after this time (ISO 8601, a zone)")] = None,
+    until: Annotated[str | None, Query(description="Only events at or before this time (ISO 8601, a zone)")] = None,
+    kind: Annotated[list[str], Query(description="Only these kinds (repeatable, or comma-separated)")] = [],  # noqa: B006
+) -> Asked:
+    """The filters `GET /timeline` and its stream share; a 422 naming a bad one."""
+    window = services.timeline.window({"robot": robot, "human": human, "since": since, "until": until})
+    return Asked(window, services.timeline.chosen_kinds(kind))
+
+
+AskedDep = Annotated[Asked, Depends(asked)]
 
 
 @router.get(
@@ -63,18 +82,13 @@ async def timeline(
     request: Request,
     services: ServicesDep,
     principal: Auditor,
-    robot: Robot = None,
-    human: Human = None,
-    since: Since = None,
-    until: Until = None,
-    kind: Kinds = [],  # noqa: B006  # FastAPI copies a query list's default
+    ask: AskedDep,
     limit: Annotated[int, Query(ge=1, le=MAX_LIMIT, description=f"Events per page (1 to {MAX_LIMIT})")] = DEFAULT_LIMIT,
     after: Annotated[str | None, Query(description="The `next` of the previous page")] = None,
     format: Annotated[str | None, Query(description="json, csv or html; overrides Accept")] = None,
 ) -> Response:
     fmt = negotiate(FORMATS, request.headers.get("accept"), format, what="a timeline")
-    window = services.timeline.window({"robot": robot, "human": human, "since": since, "until": until})
-    kinds = services.timeline.chosen_kinds(kind)
+    window, kinds = ask.window, ask.kinds
 
     def work() -> Response:
         if fmt.name == "html":
@@ -105,14 +119,9 @@ async def timeline_stream(
     request: Request,
     services: ServicesDep,
     principal: Auditor,
-    robot: Robot = None,
-    human: Human = None,
-    since: Since = None,
-    until: Until = None,
-    kind: Kinds = [],  # noqa: B006  # FastAPI copies a query list's default
+    ask: AskedDep,
 ) -> StreamingResponse:
-    window = services.timeline.window({"robot": robot, "human": human, "since": since, "until": until})
-    kinds = set(services.timeline.chosen_kinds(kind))
+    window, kinds = ask.window, set(ask.kinds)
     kept = services.timeline_rows
     feed = ChangeFeed(kept.rows, event_id(request.headers.get("last-event-id", "")))
     await feed.start()  # before the answer's headers go out: a change made once the reader sees them is sent

@@ -1,5 +1,5 @@
 """One event of a timeline: its kind, the resource it is about, its time, the rows its query gave for it, and
-the row the API answers with (its sentence and links)."""
+the row the API answers with (its sentence and links); and the events of a kind's rows, as its query orders them."""
 
 from __future__ import annotations
 
@@ -9,8 +9,10 @@ from urllib.parse import quote
 
 from segb_server.backend.services.timeline.kinds import RANK
 from segb_server.backend.services.timeline.sentences import Rows, Told, tell
-from segb_server.backend.services.values import JsonValue
+from segb_server.backend.services.values import JsonValue, json_value
+from segb_server.backend.store.base import SelectResult
 
+Row = dict[str, JsonValue]
 COLUMNS = ["time", "kind", "sentence", "robot", "humans", "iri", "explain", "graph"]  # the CSV's, in order
 
 
@@ -54,3 +56,25 @@ def moment(time: str) -> tuple[int, str]:
     if parsed.tzinfo is None:
         return 1, time
     return 0, parsed.astimezone(UTC).strftime("%Y-%m-%dT%H:%M:%S.%f")
+
+
+def json_rows(result: SelectResult) -> list[Row]:
+    return [{column: json_value(row.get(column)) for column in result.columns} for row in result.rows]
+
+
+def grouped(kind: str, key: str, rows: list[Row]) -> list[TimelineEvent]:
+    """The events of rows in their query's order: each run of rows with one key and one time is one event."""
+    events: list[TimelineEvent] = []
+    run: list[Row] = []
+    for row in rows:
+        if run and (row.get(key), row.get("time")) != (run[0].get(key), run[0].get("time")):
+            events.append(event_of(kind, key, run))
+            run = []
+        run.append(row)
+    if run:
+        events.append(event_of(kind, key, run))
+    return events
+
+
+def event_of(kind: str, key: str, rows: list[Row]) -> TimelineEvent:
+    return TimelineEvent(kind, str(rows[0].get(key)), str(rows[0].get("time")), tuple(rows))

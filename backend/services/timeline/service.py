@@ -23,8 +23,9 @@ from datetime import datetime
 from segb_server.backend.services.errors import Conflict, InvalidParameter
 from segb_server.backend.services.sparql.catalog import Parameter, to_term
 from segb_server.backend.services.timeline.events import COLUMNS, TimelineEvent
+from segb_server.backend.services.timeline.kept_reader import Moved, Position
 from segb_server.backend.services.timeline.kinds import KINDS
-from segb_server.backend.services.timeline.sources import FIRST_CHUNK, Moved, Position, Reader, Source, Window
+from segb_server.backend.services.timeline.sources import FIRST_CHUNK, Reader, Source, Window
 from segb_server.backend.services.values import JsonValue
 
 DEFAULT_LIMIT = 1000
