@@ -68,30 +68,16 @@
   more(root.getAttribute("data-next"));
 
   // --- live updates ------------------------------------------------------------------------------------------
-  if (!toggle || !window.EventSource) return;
-  var source = null;
+  if (!toggle || !window.EventSource || !window.segbLiveToggle) return;
   var lastId = root.getAttribute("data-after") || "";
-
-  function start() {
-    source = new EventSource(root.getAttribute("data-live") + (lastId ? "&after=" + encodeURIComponent(lastId) : ""));
+  window.segbLiveToggle(toggle, function () {
+    var source = new EventSource(root.getAttribute("data-live") + (lastId ? "&after=" + encodeURIComponent(lastId) : ""));
     source.addEventListener("rows", function (event) {
       lastId = event.lastEventId || lastId;
       var change = JSON.parse(event.data);
       timeline.upsert(change.kind, change.keys, change.rows);
     });
     source.addEventListener("reset", function () { reload(); });
-    toggle.setAttribute("aria-pressed", "true");
-    toggle.textContent = "Live updates: on";
-  }
-
-  function stop() {
-    if (source) source.close();
-    source = null;
-    toggle.setAttribute("aria-pressed", "false");
-    toggle.textContent = "Live updates: paused";
-  }
-
-  toggle.hidden = false;
-  toggle.addEventListener("click", function () { if (source) stop(); else start(); });
-  start();
+    return source;
+  });
 })();
