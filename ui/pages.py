@@ -23,6 +23,7 @@ ADMIN = ("admin",)
 NAVIGATION: list[tuple[str, str, tuple[str, ...] | None]] = [
     ("Reports", "/reports", AUDITOR),
     ("Timeline", "/timeline", AUDITOR),
+    ("Findings", "/findings", AUDITOR),
     ("Graph", "/kg-graph", AUDITOR),
     ("Query", "/query", AUDITOR),
     ("Shared context", "/shared-context", ADMIN),
@@ -55,6 +56,7 @@ def render(
     page = {
         "navigation": [(label, path) for label, path, roles in NAVIGATION if who.can(roles)],
         "current_nav": current_nav(request.url.path),
+        "badges": getattr(request.state, "badges", {}),
         "viewer": who,
         "csrf_token": csrf_token(request),
         **(context or {}),

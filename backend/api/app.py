@@ -18,6 +18,7 @@ from segb_server.backend.api.request_context import RequestContext
 from segb_server.backend.api.routes import (
     auth,
     events,
+    findings,
     graph,
     health,
     ingest,
@@ -60,6 +61,7 @@ ROUTERS = [
     validate.router,
     events.router,
     graph.router,
+    findings.router,
     ledger.router,
     sparql.router,
     sparql_examples.router,

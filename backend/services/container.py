@@ -13,6 +13,10 @@ from segb_server.backend.services.ops.result_cache import DataVersion, ResultCac
 from segb_server.backend.services.ops.server_log import ServerLog
 from segb_server.backend.services.reports.service import FOLDER as REPORTS_FOLDER
 from segb_server.backend.services.reports.service import ReportService
+from segb_server.backend.services.rules.catalog import RuleCatalog
+from segb_server.backend.services.rules.service import FindingsService
+from segb_server.backend.services.rules.shape_view import ShapeFindings
+from segb_server.backend.services.rules.shapes import ShapeRule
 from segb_server.backend.services.shared_context.policy import Policy
 from segb_server.backend.services.shared_context.service import SharedContextService
 from segb_server.backend.services.shared_context.state import STATE_FILE
@@ -36,6 +40,8 @@ REQUIRED_QUERIES = ("reports/", f"{TIMELINE_FOLDER}/", "graph/resource-in", "gra
 OWNED_STORES = {"oxigraph", "memory"}
 REPORTS_FILE = "reports.sqlite3"  # the reports' rows, kept current; rebuilt from the store when missing
 GRAPH_FILE = "graph.sqlite3"  # the graph index, likewise
+FINDINGS_FILE = "findings.sqlite3"  # the SPARQL rules' findings, kept as the reports' rows are
+SHAPE_FINDINGS_FILE = "shape-findings.sqlite3"  # the SHACL rules' findings
 TIMELINE_FILE = "timeline.sqlite3"  # the timeline's rows, one table per kind, likewise
 
 
@@ -47,6 +53,7 @@ class Services:
     writes: WritePath  # journal → store → views, and which process does what
     ingest: IngestService
     reports: ReportService
+    findings: FindingsService
     timeline: TimelineService
     graph: GraphService
     explain: ExplainService
@@ -65,6 +72,10 @@ class Services:
         self.graph.close()
         if self.reports.maintainer is not None:
             self.reports.maintainer.rows.close()
+        if self.findings.kept is not None:
+            self.findings.kept.rows.close()
+        if self.findings.shapes is not None:
+            self.findings.shapes.close()
         self.timeline_rows.rows.close()
         self.queries.close()
         self.shared_context.close()
@@ -77,26 +88,46 @@ def build_services(
     catalog = catalog or Catalog(settings.sparql_dir, required=REQUIRED_QUERIES)
     folder = None if settings.store == "memory" else settings.data_dir  # views of a memory store: temporary files
     kept_reports = KeptQueries(store, KeptRows(folder and folder / REPORTS_FILE))
+    index = GraphIndex(store, folder and folder / GRAPH_FILE, detail_literals=TOLD_LITERALS)
+    rules = RuleCatalog(settings.rules_dir)
+    shape_rules = {rule.id: ShapeRule(rule) for rule in rules.shapes()}
+    kept_findings = KeptQueries(store, KeptRows(folder and folder / FINDINGS_FILE))
     kept_timeline = KeptQueries(store, KeptRows(folder and folder / TIMELINE_FILE))
     timeline = timeline_sources(catalog, store, kept_timeline)
-    index = GraphIndex(store, folder and folder / GRAPH_FILE, detail_literals=TOLD_LITERALS)
+    shape_findings = None
     if settings.keep_views:
+        shape_findings = ShapeFindings(
+            store, list(shape_rules.values()), folder and folder / SHAPE_FINDINGS_FILE, kept_findings.rows.changed
+        )
         for query in catalog.under(REPORTS_FOLDER):
             kept_reports.add(query)
+        for rule in rules.sparql():
+            assert rule.query is not None
+            kept_findings.add(rule.query)
         for source in timeline:
             kept_timeline.add(source.query)
 
         def housekeeping() -> None:
             kept_reports.drop_unkept()
+            kept_findings.drop_unkept()
             kept_timeline.drop_unkept()
 
-        views: list[KeptView] = [*kept_reports.views(), *kept_timeline.views(), index]
+        views: list[KeptView] = [
+            *kept_reports.views(),
+            *kept_timeline.views(),
+            index,
+            *kept_findings.views(),
+            shape_findings,
+        ]
         writes = WritePath.open(settings, store, views, housekeeping)
     else:  # nothing kept; the rows kept before stay as they are for when views are on again
         writes = WritePath.open(settings, store, [])
     version = DataVersion()
     writes.on_applied(lambda _step: version.bump())  # whatever the applier writes invalidates cached results
     cache = ResultCache(version, enabled=store.kind in OWNED_STORES)
+    findings = FindingsService(
+        rules, store, kept_findings if settings.keep_views else None, shape_findings, shape_rules
+    )
     graph = GraphService(
         catalog, store, index, wait_ready=lambda timeout: writes.wait_viewed(0, timeout), pending=writes.on_the_way
     )
@@ -114,8 +145,8 @@ def build_services(
             max_backlog=settings.journal_max_backlog,
         ),
         reports=ReportService(catalog, store, cache, kept_reports, lag=writes.lag),
+        findings=findings,
         timeline=TimelineService(timeline, kept_timeline.rows.last_change),
-        timeline_rows=kept_timeline,
         graph=graph,
         explain=ExplainService(graph),
         shared_context=SharedContextService.open(
@@ -129,6 +160,7 @@ def build_services(
             max_memory_bytes=settings.sparql_max_memory_bytes,
             snapshots=folder and folder / "snapshots",
         ),
+        timeline_rows=kept_timeline,
         server_log=server_log,
     )
 

@@ -50,6 +50,7 @@ def demo_pages(stack: UiStack) -> dict[str, str]:
     message, robot = answer["rows"][0]["message"], answer["rows"][0]["robot"]
     pages = {
         "/reports": "reports",
+        "/findings": "findings",
         **{f"/reports/{name}": f"report-{name}" for name in REPORTS},
         "/timeline?" + str(httpx.QueryParams({"robot": robot})): "timeline",
         "/timeline": "timeline-empty",

@@ -10,6 +10,7 @@ from fastapi.responses import HTMLResponse, Response
 
 from segb_server.ui.api_client import BackendError
 from segb_server.ui.choices import participant_choices
+from segb_server.ui.findings_marks import findings_about
 from segb_server.ui.namesakes import Name, entity_names
 from segb_server.ui.pages import backend, render, token
 from segb_server.ui.query_params import paging, query_values
@@ -49,6 +50,16 @@ def report_filters(request: Request, parameters: list[dict[str, Any]]) -> dict[s
 
 def _section(name: str, table: dict[str, Any], described: dict[str, Any], names: dict[str, Name]) -> dict[str, Any]:
     return {"name": name, "info": described, "table": table, **view_of(name, table, names)}
+
+
+async def _mark_findings(request: Request, sections: list[dict[str, Any]]) -> None:
+    """The conversations mark each message a finding is about (or whose activity one is about)."""
+    for section in sections:
+        if section["name"] == "conversations":
+            rows = section["table"]["rows"]
+            section["marks"] = await findings_about(
+                request, [row.get(key) for row in rows for key in ("message", "activity")]
+            )
 
 
 def live_after(tables: list[dict[str, Any]]) -> str:
@@ -93,6 +104,7 @@ async def reports_overview(request: Request) -> HTMLResponse:
     # One name per entity on the whole page: a namesake carries the same qualifier in every report.
     shown = entity_names(table["rows"] for table in tables)
     sections = [_section(name, table, described[name], shown) for name, table in zip(names, tables, strict=True)]
+    await _mark_findings(request, sections)
     return render(
         request,
         "reports.html",
@@ -121,11 +133,13 @@ async def one_report(request: Request, name: str) -> HTMLResponse:
         client.get_json(f"/reports/{name}", token=user_token, params={**filters, "limit": limit, "offset": offset}),
         participant_choices(request),
     )
+    section = _section(name, table, described, entity_names([table["rows"]]))
+    await _mark_findings(request, [section])
     return render(
         request,
         "report.html",
         {
-            "report": _section(name, table, described, entity_names([table["rows"]])),
+            "report": section,
             "parameters": described["parameters"],
             "filters": filters,
             "choices": choices,

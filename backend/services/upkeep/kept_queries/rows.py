@@ -337,6 +337,25 @@ class KeptRows:
     def last_change(self) -> int:
         return self.db.reader().execute("SELECT COALESCE(MAX(seq), 0) FROM report_changes").fetchone()[0]
 
+    def count(self, layout: Layout, bound: dict[str, Any]) -> int:
+        """How many rows match the bound parameters (plain queries: an aggregate's rows are its groups)."""
+        conditions = self._conditions(layout, bound)
+        if conditions is None:  # a filter on an IRI no row holds
+            return 0
+        where, arguments = conditions
+        clause = f"WHERE {' AND '.join(where)}" if where else ""
+        return int(self.db.reader().execute(f"SELECT COUNT(*) FROM {layout.table} {clause}", arguments).fetchone()[0])
+
+    def rows_of(self, layout: Layout, iris: Sequence[str]) -> list[dict[str, JsonValue]]:
+        """The rows whose key is one of these IRIs, in the query's order."""
+        reader = self.db.reader()
+        ids = list(terms.lookup(reader, TERMS, [term_text(NamedNode(iri)) for iri in iris]).values())
+        found: list[tuple[str, int, int, str]] = []
+        for chunk in _chunks(ids):
+            marks = ", ".join("?" * len(chunk))
+            found += reader.execute(f"SELECT ord, unit, n, row FROM {layout.table} WHERE unit IN ({marks})", chunk)
+        return [layout.loaded(row[3]) for row in sorted(found)]
+
     def _conditions(self, layout: Layout, bound: dict[str, Any]) -> tuple[list[str], list[object]] | None:
         """The WHERE conditions of the bound parameters; None when one names an IRI no row holds."""
         where: list[str] = []
