@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
@@ -386,4 +387,16 @@ def write_report(f: Figures, path: Path) -> None:
         "",
         *(line for note in getattr(f, "added_runs", []) for line in (note, "")),
     ]
-    path.write_text("\n".join(header + _sections(f)) + "\n", encoding="utf-8")
+    kept = kept_sections(path)
+    path.write_text("\n".join(header + _sections(f) + kept) + "\n", encoding="utf-8")
+
+
+# A section another bench command writes (`<!-- section: name -->` … `<!-- /section: name -->`, e.g.
+# bench/timeline.py's): kept as it is when this page is written again.
+_KEPT = re.compile(r"<!-- section: (\S+) -->.*?<!-- /section: \1 -->", re.S)
+
+
+def kept_sections(path: Path) -> list[str]:
+    if not path.exists():
+        return []
+    return [line for match in _KEPT.finditer(path.read_text(encoding="utf-8")) for line in ("", match.group(0))]

@@ -176,6 +176,13 @@ def store(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[Store]:
 
 
 @pytest.fixture
+def store_server(store: Store, tmp_path: Path) -> Iterator[str]:
+    """The API over real HTTP on each store, with a data directory of its own (its views on disk): its URL."""
+    with LiveServer(create_app(make_settings(store=store.kind, data_dir=tmp_path / "data"), store=store)) as live:
+        yield live.url
+
+
+@pytest.fixture
 def memory_store() -> Iterator[Store]:
     opened = OxigraphStore("http://amor-segb/events")
     yield opened

@@ -34,6 +34,7 @@ from segb_server.ui.routes import (
     reports,
     session,
     shared_context,
+    timeline,
 )
 from segb_server.ui.security import SecurityHeaders
 from segb_server.ui.session import ViewerCache, ViewerMiddleware
@@ -44,6 +45,7 @@ ROUTERS = [
     home.router,
     health.router,
     reports.router,
+    timeline.router,
     findings.router,
     graph.router,
     session.router,

@@ -22,6 +22,7 @@ ADMIN = ("admin",)
 # (label, path, roles that can use the page; None = public). Pages a viewer cannot use are not shown.
 NAVIGATION: list[tuple[str, str, tuple[str, ...] | None]] = [
     ("Reports", "/reports", AUDITOR),
+    ("Timeline", "/timeline", AUDITOR),
     ("Findings", "/findings", AUDITOR),
     ("Graph", "/kg-graph", AUDITOR),
     ("Query", "/query", AUDITOR),

@@ -29,6 +29,7 @@ from segb_server.backend.api.routes import (
     shared_context,
     sparql,
     sparql_examples,
+    timeline,
     validate,
     vocabulary,
 )
@@ -128,6 +129,6 @@ def create_app(settings: Settings | None = None, store: Store | None = None, *, 
         )
     app.add_middleware(SecurityHeaders)
     app.add_middleware(RequestContext)  # outermost: every answer carries the id
-    for router in [*ROUTERS, live.router, reports.build_router(catalog)]:
+    for router in [*ROUTERS, live.router, timeline.router, reports.build_router(catalog)]:
         app.include_router(router)
     return app

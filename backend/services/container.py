@@ -22,6 +22,10 @@ from segb_server.backend.services.shared_context.service import SharedContextSer
 from segb_server.backend.services.shared_context.state import STATE_FILE
 from segb_server.backend.services.sparql.catalog import Catalog
 from segb_server.backend.services.sparql.runner import QueryRunner, query_runner
+from segb_server.backend.services.timeline.kinds import FOLDER as TIMELINE_FOLDER
+from segb_server.backend.services.timeline.kinds import KINDS, query_name
+from segb_server.backend.services.timeline.service import TimelineService
+from segb_server.backend.services.timeline.sources import KeptSource
 from segb_server.backend.services.upkeep.keeper import KeptView
 from segb_server.backend.services.upkeep.kept_queries.projection import KeptQueries
 from segb_server.backend.services.upkeep.kept_queries.rows import KeptRows
@@ -29,14 +33,16 @@ from segb_server.backend.services.writing.write_path import WritePath
 from segb_server.backend.state.opening import open_state
 from segb_server.backend.store.base import Store
 
-# What the reports, the graph explorer and the explanations run; without them the server must not start.
-REQUIRED_QUERIES = ("reports/", "graph/resource-in", "graph/resource-out")
+# What the reports, the timeline, the graph explorer and the explanations run; without them the server must not
+# start.
+REQUIRED_QUERIES = ("reports/", f"{TIMELINE_FOLDER}/", "graph/resource-in", "graph/resource-out")
 # Stores written only through this server (the journal's applier), whose cached results a write invalidates.
 OWNED_STORES = {"oxigraph", "memory"}
 REPORTS_FILE = "reports.sqlite3"  # the reports' rows, kept current; rebuilt from the store when missing
 GRAPH_FILE = "graph.sqlite3"  # the graph index, likewise
 FINDINGS_FILE = "findings.sqlite3"  # the SPARQL rules' findings, kept as the reports' rows are
 SHAPE_FINDINGS_FILE = "shape-findings.sqlite3"  # the SHACL rules' findings
+TIMELINE_FILE = "timeline.sqlite3"  # the timeline's rows, one table per kind, likewise
 
 
 @dataclass
@@ -48,10 +54,12 @@ class Services:
     ingest: IngestService
     reports: ReportService
     findings: FindingsService
+    timeline: TimelineService
     graph: GraphService
     explain: ExplainService
     shared_context: SharedContextService
     queries: QueryRunner
+    timeline_rows: KeptQueries  # the timeline's kinds kept as rows (its live stream reads their changes)
     server_log: ServerLog | None = None  # the API's own log; None where nothing serves it (the CLI, the demo)
 
     def start(self) -> None:
@@ -68,6 +76,7 @@ class Services:
             self.findings.kept.rows.close()
         if self.findings.shapes is not None:
             self.findings.shapes.close()
+        self.timeline_rows.rows.close()
         self.queries.close()
         self.shared_context.close()
 
@@ -83,6 +92,8 @@ def build_services(
     rules = RuleCatalog(settings.rules_dir)
     shape_rules = {rule.id: ShapeRule(rule) for rule in rules.shapes()}
     kept_findings = KeptQueries(store, KeptRows(folder and folder / FINDINGS_FILE))
+    kept_timeline = KeptQueries(store, KeptRows(folder and folder / TIMELINE_FILE))
+    timeline = timeline_sources(catalog, store, kept_timeline)
     shape_findings = None
     if settings.keep_views:
         shape_findings = ShapeFindings(
@@ -93,18 +104,30 @@ def build_services(
         for rule in rules.sparql():
             assert rule.query is not None
             kept_findings.add(rule.query)
+        for source in timeline:
+            kept_timeline.add(source.query)
 
         def housekeeping() -> None:
             kept_reports.drop_unkept()
             kept_findings.drop_unkept()
+            kept_timeline.drop_unkept()
 
-        views: list[KeptView] = [*kept_reports.views(), index, *kept_findings.views(), shape_findings]
+        views: list[KeptView] = [
+            *kept_reports.views(),
+            *kept_timeline.views(),
+            index,
+            *kept_findings.views(),
+            shape_findings,
+        ]
         writes = WritePath.open(settings, store, views, housekeeping)
     else:  # nothing kept; the rows kept before stay as they are for when views are on again
         writes = WritePath.open(settings, store, [])
     version = DataVersion()
     writes.on_applied(lambda _step: version.bump())  # whatever the applier writes invalidates cached results
     cache = ResultCache(version, enabled=store.kind in OWNED_STORES)
+    findings = FindingsService(
+        rules, store, kept_findings if settings.keep_views else None, shape_findings, shape_rules
+    )
     graph = GraphService(
         catalog, store, index, wait_ready=lambda timeout: writes.wait_viewed(0, timeout), pending=writes.on_the_way
     )
@@ -122,13 +145,8 @@ def build_services(
             max_backlog=settings.journal_max_backlog,
         ),
         reports=ReportService(catalog, store, cache, kept_reports, lag=writes.lag),
-        findings=FindingsService(
-            rules,
-            store,
-            kept_findings if settings.keep_views else None,
-            shape_findings,
-            shape_rules,
-        ),
+        findings=findings,
+        timeline=TimelineService(timeline, kept_timeline.rows.last_change),
         graph=graph,
         explain=ExplainService(graph),
         shared_context=SharedContextService.open(
@@ -142,5 +160,12 @@ def build_services(
             max_memory_bytes=settings.sparql_max_memory_bytes,
             snapshots=folder and folder / "snapshots",
         ),
+        timeline_rows=kept_timeline,
         server_log=server_log,
     )
+
+
+def timeline_sources(catalog: Catalog, store: Store, kept: KeptQueries) -> list[KeptSource]:
+    """One source per kind of event that has a query (`sparql/timeline/<kind>.rq`)."""
+    names = {query.name for query in catalog.under(TIMELINE_FOLDER)}
+    return [KeptSource(kind, catalog.get(query_name(kind)), kept, store) for kind in KINDS if query_name(kind) in names]

@@ -9,10 +9,8 @@ import json
 import random
 import re
 from collections import Counter
-from collections.abc import Iterator
 from pathlib import Path
 
-import httpx
 import pytest
 from pyoxigraph import QueryResultsFormat, parse_query_results
 
@@ -20,11 +18,10 @@ from segb_server.backend.api.app import create_app
 from segb_server.backend.config import PACKAGE_ROOT
 from segb_server.backend.services.sparql.catalog import Catalog
 from segb_server.backend.services.values import json_value
-from segb_server.backend.store.base import Store
 from segb_server.backend.store.oxigraph import OxigraphStore
 from segb_server.backend.store.terms import bind_values
-from tests.conftest import STORE_KINDS, make_settings, virtuoso_store
-from tests.support.histories import EX, HUMANS, ROBOTS, History
+from tests.conftest import make_settings
+from tests.support.histories import EX, HUMANS, ROBOTS, History, send
 from tests.support.in_process import InProcess, Server, http
 from tests.support.settle import settle
 
@@ -76,30 +73,13 @@ def bound_text(name: str, params: dict[str, str]) -> str:
     return bind_values(query.text, query.bindings(params))
 
 
-@pytest.fixture(params=STORE_KINDS)
-def server(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[httpx.Client]:
-    if request.param == "virtuoso":
-        store: Store = virtuoso_store(request.getfixturevalue("virtuoso"))
-    else:
-        store = OxigraphStore("http://amor-segb/events", tmp_path / "oxigraph")
-    with InProcess(create_app(make_settings(store=request.param, data_dir=tmp_path), store=store)) as live:
-        yield live.client
-    if request.param == "virtuoso":
-        store.clear()
-    store.close()
-
-
 @pytest.mark.parametrize("seed", [1, pytest.param(2, marks=pytest.mark.slow)])  # a second history: the full tier
-def test_reports_equal_their_full_evaluation_after_every_step(server: httpx.Client, seed: int) -> None:
+def test_reports_equal_their_full_evaluation_after_every_step(store_server: str, seed: int) -> None:
+    server = store_server
     history = History(seed)
     speakers: dict[object, set[object]] = {}  # each message's speakers over the steps: late links change them
     for step in range(16):
-        post = history.next_post()
-        if post is None:
-            assert server.post("/ttl/delete_all", json={}).status_code == 200
-        else:
-            answer = server.post("/ttl", content="\n".join(post), headers={"Content-Type": "application/n-triples"})
-            assert answer.status_code == 201, answer.text
+        send(server, history.next_post())
         settle(server)
         variants = [{}]
         if step % 4 == 3:
@@ -122,7 +102,7 @@ def test_reports_equal_their_full_evaluation_after_every_step(server: httpx.Clie
                 if name == "conversations" and not accepted:
                     for row in served:
                         speakers.setdefault(row["message"], set()).add(row["speaker"])
-        served_from = {server.get(f"/reports/{query.name[8:]}").json()["served_from"] for query in REPORTS}
+        served_from = {http(server, "GET", f"/reports/{query.name[8:]}").json()["served_from"] for query in REPORTS}
         assert served_from == {"rows"}  # compared above: the rows kept current, not an evaluation
     assert set().union(*speakers.values()) == {"human", "robot", "unidentified"}  # the histories reached each
 

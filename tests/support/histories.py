@@ -6,6 +6,8 @@ from __future__ import annotations
 import random
 from dataclasses import dataclass, field
 
+from tests.support.in_process import Server, http
+
 EX = "https://example.org/diff/"
 P = {
     "rdf": "http://www.w3.org/1999/02/22-rdf-syntax-ns#", "rdfs": "http://www.w3.org/2000/01/rdf-schema#",
@@ -132,3 +134,13 @@ class History:
             post += self.rng.sample(self.sent, min(len(self.sent), 20))  # re-published
         self.sent += post
         return post
+
+
+def send(server: Server, post: list[str] | None) -> None:
+    """A post of a history to `server` (N-Triples), or, for None, a clearing of the graph."""
+    if post is None:
+        answer = http(server, "POST", "/ttl/delete_all", json={})
+        assert answer.status_code == 200, answer.text
+        return
+    answer = http(server, "POST", "/ttl", content="\n".join(post), headers={"Content-Type": "application/n-triples"})
+    assert answer.status_code == 201, answer.text

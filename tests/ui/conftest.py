@@ -47,11 +47,13 @@ def demo_stack() -> Iterator[UiStack]:
 def demo_pages(stack: UiStack) -> dict[str, str]:
     """Every page of the UI with content in it (path → a name for messages and screenshots)."""
     answer = httpx.get(f"{stack.api_url}/reports/conversations", params={"limit": 1}, timeout=30).json()
-    message = answer["rows"][0]["message"]
+    message, robot = answer["rows"][0]["message"], answer["rows"][0]["robot"]
     pages = {
         "/reports": "reports",
         "/findings": "findings",
         **{f"/reports/{name}": f"report-{name}" for name in REPORTS},
+        "/timeline?" + str(httpx.QueryParams({"robot": robot})): "timeline",
+        "/timeline": "timeline-empty",
         "/kg-graph": "graph",
         "/explain?" + str(httpx.QueryParams({"iri": message})): "explain",
         "/explain": "explain-empty",
@@ -93,6 +95,8 @@ def visit(page: Any, url: str) -> None:
     page.goto(url)
     if "/kg-graph" in url:
         page.wait_for_selector("#graph[data-ready=true]", timeout=60_000)
+    if "/timeline?" in url:
+        page.wait_for_selector("#timeline-progress:has-text('events in this window')", timeout=60_000)
 
 
 def axe_violations(page: Any, impacts: tuple[str, ...] = ("serious", "critical")) -> list[str]:

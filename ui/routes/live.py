@@ -1,6 +1,6 @@
-"""/live/reports, /live/findings and /live/graph: the API's streams of view changes (Server-Sent Events), relayed
-with the viewer's session, so the page's script connects to its own origin (the CSP allows nothing else) and no
-token is ever in a URL."""
+"""/live/reports, /live/findings, /live/timeline and /live/graph: the API's streams of view changes (Server-Sent
+Events), relayed with the viewer's session, so the page's script connects to its own origin (the CSP allows nothing
+else) and no token is ever in a URL."""
 
 from __future__ import annotations
 
@@ -20,6 +20,13 @@ STREAM_TIMEOUT = httpx.Timeout(10.0, read=None)
 @router.get("/live/reports")
 async def live_reports(request: Request) -> StreamingResponse:
     return await _relay(request, "/reports/stream", {"report": request.query_params.getlist("report")})
+
+
+@router.get("/live/timeline")
+async def live_timeline(request: Request) -> StreamingResponse:
+    window = {name: [request.query_params[name]] for name in ("robot", "human", "since", "until")
+              if request.query_params.get(name)}  # fmt: skip
+    return await _relay(request, "/timeline/stream", {**window, "kind": request.query_params.getlist("kind")})
 
 
 @router.get("/live/findings")

@@ -7,8 +7,7 @@
   "use strict";
   var sections = document.querySelectorAll("section[data-report]");
   var toggle = document.getElementById("live-toggle");
-  if (!sections.length || !toggle || !window.EventSource) return;
-  var source = null;
+  if (!sections.length || !toggle || !window.EventSource || !window.segbLiveToggle) return;
   var changed = {};  // reports changed since the last fetch began
   var fetching = false;
   var gathering = null;
@@ -64,10 +63,10 @@
     if (gathering === null) gathering = window.setTimeout(refresh, GATHER_MS);
   }
 
-  function start() {
+  window.segbLiveToggle(toggle, function () {
     var names = Array.prototype.map.call(sections, function (section) { return section.dataset.report; });
     var query = names.map(function (name) { return "report=" + encodeURIComponent(name); }).join("&");
-    source = new EventSource("/live/reports?" + query + (lastId ? "&after=" + encodeURIComponent(lastId) : ""));
+    var source = new EventSource("/live/reports?" + query + (lastId ? "&after=" + encodeURIComponent(lastId) : ""));
     source.addEventListener("change", function (event) {
       lastId = event.lastEventId || lastId;
       changed[JSON.parse(event.data).report] = true;
@@ -77,18 +76,6 @@
       names.forEach(function (name) { changed[name] = true; });
       later();
     });
-    toggle.setAttribute("aria-pressed", "true");
-    toggle.textContent = "Live updates: on";
-  }
-
-  function stop() {
-    if (source) source.close();
-    source = null;
-    toggle.setAttribute("aria-pressed", "false");
-    toggle.textContent = "Live updates: paused";
-  }
-
-  toggle.hidden = false;
-  toggle.addEventListener("click", function () { if (source) stop(); else start(); });
-  start();
+    return source;
+  });
 })();

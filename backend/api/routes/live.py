@@ -19,6 +19,7 @@ from fastapi.responses import StreamingResponse
 from segb_server.backend.api.deps import Auditor, ServicesDep
 from segb_server.backend.services.errors import NotFound
 from segb_server.backend.services.reports.service import FOLDER
+from segb_server.backend.services.upkeep.kept_queries.rows import KeptRows
 from segb_server.backend.services.upkeep.signal import ChangeSignal
 
 router = APIRouter(tags=["reports"])
@@ -49,42 +50,22 @@ async def stream(
     maintainer = services.reports.maintainer
     if maintainer is None:
         raise NotFound("This server keeps no live reports.")
-    rows = maintainer.rows
     served = maintainer.served()
-    resume = event_id(request.headers.get("last-event-id", ""))
+    feed = ChangeFeed(maintainer.rows, event_id(request.headers.get("last-event-id", "")))
     # Where a new reader starts is read before the answer's headers go out: a change made as soon as the
     # reader sees them is after it, and is sent.
-    last = resume if resume is not None else await anyio.to_thread.run_sync(rows.last_change)
+    await feed.start()
 
     async def changes() -> list[bytes]:
-        nonlocal last
-        found = await anyio.to_thread.run_sync(rows.changes_since, last)
-        if not found:
-            return []
-        last = found[-1][0]
+        found = await feed.changes()
         grouped = list(_by_report(found, wanted, served).items())
         events = []
         for index, (name, units) in enumerate(grouped):
-            # The id on the group's last event only: a reader that leaves in the middle resumes from the previous
-            # id and hears the whole group again, rather than skipping the reports it had not heard yet.
-            position = f"id: {last}\n" if index == len(grouped) - 1 else ""
             data = json.dumps({"report": name.removeprefix(f"{FOLDER}/"), "units": sorted(units)})
-            events.append(f"{position}event: change\ndata: {data}\n\n".encode())
+            events.append(feed.event("change", data, last=index == len(grouped) - 1))
         return events
 
-    async def opening() -> list[bytes]:
-        nonlocal last
-        if resume is None:
-            return []
-        oldest, newest = await anyio.to_thread.run_sync(lambda: (rows.oldest_change(), rows.last_change()))
-        if oldest - 1 <= last <= newest:
-            return []
-        # Changes no longer kept, or a position these rows never reached (built again since the reader's page
-        # was read): what was missed is unknown, so the reader reloads, and hears what follows from now on.
-        last = min(last, newest)
-        return [b"event: reset\ndata: {}\n\n"]
-
-    return event_stream(request, opening, changes, rows.changed)
+    return event_stream(request, feed.opening, changes, maintainer.rows.changed)
 
 
 @router.get(
@@ -153,6 +134,45 @@ def event_stream(
 
     headers = {"Cache-Control": "no-store", "X-Accel-Buffering": "no"}  # proxies must not buffer the stream
     return StreamingResponse(events(), media_type="text/event-stream", headers=headers)
+
+
+class ChangeFeed:
+    """A reader's place in the changes of kept rows (`KeptRows.changes_since`): where it starts (the position it
+    resumes from, or now), whether it missed what is no longer kept, and what is new since."""
+
+    def __init__(self, rows: KeptRows, resume: int | None) -> None:
+        self.rows = rows
+        self.resume = resume
+        self.last = resume if resume is not None else 0
+
+    async def start(self) -> None:
+        if self.resume is None:
+            self.last = await anyio.to_thread.run_sync(self.rows.last_change)
+
+    async def opening(self) -> list[bytes]:
+        if self.resume is None:
+            return []
+        oldest, newest = await anyio.to_thread.run_sync(lambda: (self.rows.oldest_change(), self.rows.last_change()))
+        if oldest - 1 <= self.last <= newest:
+            return []
+        # Changes no longer kept, or a position these rows never reached (built again since the reader's page
+        # was read): what was missed is unknown, so the reader reloads, and hears what follows from now on.
+        self.last = min(self.last, newest)
+        return [b"event: reset\ndata: {}\n\n"]
+
+    async def changes(self) -> list[tuple[int, str, str]]:
+        """(position, view, unit) of the changes since the last look."""
+        found = await anyio.to_thread.run_sync(self.rows.changes_since, self.last)
+        if found:
+            self.last = found[-1][0]
+        return found
+
+    def event(self, name: str, data: str, *, last: bool) -> bytes:
+        """One event of a group of changes. The id goes on the group's last event only: a reader that leaves in
+        the middle resumes from the previous id and hears the whole group again, rather than skipping what it
+        had not heard yet."""
+        position = f"id: {self.last}\n" if last else ""
+        return f"{position}event: {name}\ndata: {data}\n\n".encode()
 
 
 def _by_report(

@@ -9,11 +9,12 @@ from dataclasses import dataclass, replace
 
 from segb_server.backend.services.errors import Conflict, InvalidParameter, NotFound
 from segb_server.backend.services.ops.result_cache import DataVersion, ResultCache
-from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, Catalog, CatalogQuery, paged
+from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, Catalog, CatalogQuery
+from segb_server.backend.services.sparql.paging import evaluated_page
 from segb_server.backend.services.upkeep.kept_queries.projection import KeptQueries
 from segb_server.backend.services.values import JsonValue, json_value
 from segb_server.backend.services.writing.write_path import Lag
-from segb_server.backend.store.base import Bindings, Store, select
+from segb_server.backend.store.base import Bindings, Store
 
 FOLDER = "reports"
 DEFAULT_LIMIT = 1000
@@ -174,19 +175,9 @@ class ReportService:
 
     def _compute(self, query: CatalogQuery, bindings: Bindings, limit: int, offset: int) -> ReportTable:
         # One row past the page tells whether another page exists without counting the whole result.
-        wanted = limit + 1
-        sorted_rows = self.store.max_sorted_rows
-        if sorted_rows is None or offset + wanted <= sorted_rows:
-            result = select(self.store, paged(query.text, wanted, offset), bindings)
-            window = result.rows
-        else:
-            # Past what the store sorts for a LIMIT (Virtuoso: SR353), the page is cut from the whole answer,
-            # which the store sorts without that bound. Only reports evaluated in full come here, and only
-            # for their deep pages.
-            result = select(self.store, query.text, bindings)
-            window = result.rows[offset : offset + wanted]
-        rows = [{column: json_value(row.get(column)) for column in result.columns} for row in window[:limit]]
-        return ReportTable(query, result.columns, rows, limit, offset, len(window) > limit)
+        result = evaluated_page(self.store, query.text, bindings, limit + 1, offset)
+        rows = [{column: json_value(row.get(column)) for column in result.columns} for row in result.rows[:limit]]
+        return ReportTable(query, result.columns, rows, limit, offset, len(result.rows) > limit)
 
 
 def short_name(query: CatalogQuery) -> str:

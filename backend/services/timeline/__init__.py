@@ -1,0 +1,1 @@
+"""The investigator's timeline: every logged event of one robot or one human over a window, in time order."""
