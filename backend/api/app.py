@@ -24,6 +24,7 @@ from segb_server.backend.api.routes import (
     ledger,
     live,
     logs,
+    people,
     reports,
     shared_context,
     sparql,
@@ -63,6 +64,7 @@ ROUTERS = [
     sparql.router,
     sparql_examples.router,
     logs.router,
+    people.router,
     shared_context.router,
     vocabulary.router,
 ]

@@ -11,6 +11,9 @@ from segb_server.backend.services.graph.service import GraphService
 from segb_server.backend.services.ingest.service import IngestService
 from segb_server.backend.services.ops.result_cache import DataVersion, ResultCache
 from segb_server.backend.services.ops.server_log import ServerLog
+from segb_server.backend.services.people.erasure import RULE as ERASURE_RULE
+from segb_server.backend.services.people.erasure import ErasureService
+from segb_server.backend.services.people.places import forgetting
 from segb_server.backend.services.reports.service import FOLDER as REPORTS_FOLDER
 from segb_server.backend.services.reports.service import ReportService
 from segb_server.backend.services.shared_context.policy import Policy
@@ -25,7 +28,7 @@ from segb_server.backend.state.opening import open_state
 from segb_server.backend.store.base import Store
 
 # What the reports, the graph explorer and the explanations run; without them the server must not start.
-REQUIRED_QUERIES = ("reports/", "graph/resource-in", "graph/resource-out")
+REQUIRED_QUERIES = ("reports/", "graph/resource-in", "graph/resource-out", ERASURE_RULE)
 # Stores written only through this server (the journal's applier), whose cached results a write invalidates.
 OWNED_STORES = {"oxigraph", "memory"}
 REPORTS_FILE = "reports.sqlite3"  # the reports' rows, kept current; rebuilt from the store when missing
@@ -44,6 +47,7 @@ class Services:
     explain: ExplainService
     shared_context: SharedContextService
     queries: QueryRunner
+    erasure: ErasureService
     server_log: ServerLog | None = None  # the API's own log; None where nothing serves it (the CLI, the demo)
 
     def start(self) -> None:
@@ -80,6 +84,19 @@ def build_services(
     graph = GraphService(
         catalog, store, index, wait_ready=lambda timeout: writes.wait_viewed(0, timeout), pending=writes.on_the_way
     )
+    shared_context = SharedContextService.open(
+        Policy.from_settings(settings),
+        open_state(settings.state_url, folder and folder / STATE_FILE, writers="contexts"),
+    )
+    queries = query_runner(
+        store,
+        version,
+        workers=settings.sparql_workers,
+        max_memory_bytes=settings.sparql_max_memory_bytes,
+        snapshots=folder and folder / "snapshots",
+    )
+    view_files = [folder / REPORTS_FILE, folder / GRAPH_FILE] if folder else []
+    places = forgetting(writes.journal, shared_context, queries, server_log, view_files)
     return Services(
         settings=settings,
         store=store,
@@ -96,16 +113,8 @@ def build_services(
         reports=ReportService(catalog, store, cache, kept_reports),
         graph=graph,
         explain=ExplainService(graph),
-        shared_context=SharedContextService.open(
-            Policy.from_settings(settings),
-            open_state(settings.state_url, folder and folder / STATE_FILE, writers="contexts"),
-        ),
-        queries=query_runner(
-            store,
-            version,
-            workers=settings.sparql_workers,
-            max_memory_bytes=settings.sparql_max_memory_bytes,
-            snapshots=folder and folder / "snapshots",
-        ),
+        shared_context=shared_context,
+        queries=queries,
+        erasure=ErasureService(store, catalog.get(ERASURE_RULE), writes, places),
         server_log=server_log,
     )

@@ -111,6 +111,10 @@ class Database(ABC):
         """After rows were inserted with their keys given, make the keys the database assigns follow them."""
         return None
 
+    def compact(self) -> None:
+        """Leave nothing removed in the database's files where this server can see to it (after an erasure)."""
+        return None
+
     def ping(self) -> None:
         """Raise StateUnavailable unless the database answers."""
         self.execute("SELECT 1").fetchone()

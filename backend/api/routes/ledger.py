@@ -3,7 +3,7 @@ received, and a check of the hash chain."""
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Query, Request
 from fastapi.concurrency import run_in_threadpool
@@ -15,6 +15,7 @@ from segb_server.backend.api.paging import Offset
 from segb_server.backend.api.responses import FastJSONResponse
 from segb_server.backend.services.formats import Format as MediaFormat
 from segb_server.backend.services.formats import negotiate
+from segb_server.backend.services.writing.receipts import BrokenReason
 
 router = APIRouter(tags=["ledger"])
 
@@ -43,13 +44,18 @@ class LedgerPage(BaseModel):
 class BrokenLinkOut(BaseModel):
     sequence: int
     log_id: str
-    reason: Literal["hash mismatch", "previous hash does not match", "sequence gap", "content does not match"]
+    reason: BrokenReason
 
 
 class VerificationOut(BaseModel):
     valid: bool
     receipts: int = Field(description="Receipts in the ledger.")
     deep: bool | None = Field(None, description="True when every entry's content was hashed again too.")
+    redactions: int | None = Field(
+        None,
+        description="Erasures in the chain (only when there are any): each removed triples from earlier posts and is recorded as an entry "
+        "(who, when, why, which posts); a deep check verifies what remains of those posts against it.",
+    )
     first_broken: BrokenLinkOut | None = Field(None, description="Only when the chain is broken.")
 
 
@@ -95,6 +101,7 @@ async def verify_ledger(
         valid=checked.valid,
         receipts=checked.receipts,
         deep=checked.deep or None,
+        redactions=checked.redactions or None,
         first_broken=BrokenLinkOut(sequence=broken.sequence, log_id=broken.log_id, reason=broken.reason)
         if broken
         else None,

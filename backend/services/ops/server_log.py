@@ -15,9 +15,10 @@ import logging
 import os
 import threading
 from collections import deque
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Collection, Iterable, Iterator
 from pathlib import Path
 from typing import Any, BinaryIO
+from urllib.parse import quote
 
 from segb_server.backend.config import Settings
 from segb_server.backend.services.clock import utc_iso
@@ -69,13 +70,13 @@ class _JsonLines(logging.Handler):
         self.path = path
         self.max_bytes = max_bytes
         self.backups = backups
-        self._writers = FileLock(path.with_name(f"{path.name}.lock"))
+        self.writers = FileLock(path.with_name(f"{path.name}.lock"))
         self._stream: BinaryIO | None = None
 
     def emit(self, record: logging.LogRecord) -> None:
         try:
             data = (line_of(entry_of(record)) + "\n").encode("utf-8")
-            with self._writers.held():
+            with self.writers.held():
                 stream = self._current()
                 if self.backups and os.fstat(stream.fileno()).st_size + len(data) > self.max_bytes:
                     self._rotate()
@@ -112,7 +113,7 @@ class _JsonLines(logging.Handler):
             if self._stream is not None:
                 self._stream.close()
                 self._stream = None
-            self._writers.close()
+            self.writers.close()
         finally:
             self.release()
         super().close()
@@ -132,6 +133,14 @@ class _Ring(logging.Handler):
     def newest_first(self) -> list[Entry]:
         with self._entries_lock:
             return list(reversed(self.entries))
+
+    def drop(self, unwanted: Callable[[str], bool]) -> int:
+        with self._entries_lock:
+            kept = [entry for entry in self.entries if not unwanted(line_of(entry))]
+            dropped = len(self.entries) - len(kept)
+            self.entries.clear()
+            self.entries.extend(kept)
+        return dropped
 
 
 class ServerLog:
@@ -177,6 +186,46 @@ class ServerLog:
     def uninstall(self) -> None:
         logging.getLogger(ROOT_LOGGER).removeHandler(self.handler)
         self.handler.close()
+
+    def forget(self, terms: Collection[str]) -> int:
+        """Remove every entry quoting one of `terms` (an erased person's IRIs and words, as written or as a URL
+        path writes them), from the file and its rotations; returns how many went."""
+        needles = {form for term in terms if term for form in (term, quote(term, safe=""), json.dumps(term)[1:-1])}
+        return self._drop(lambda line: any(needle in line for needle in needles))
+
+    def forget_before(self, cutoff: str) -> int:
+        """Remove every entry written before `cutoff` (ISO 8601 UTC): retention."""
+
+        def older(line: str) -> bool:
+            try:
+                return str(json.loads(line).get("time", "")) < cutoff
+            except (ValueError, AttributeError):
+                return False
+
+        return self._drop(older)
+
+    def _drop(self, unwanted: Callable[[str], bool]) -> int:
+        if isinstance(self.handler, _Ring):
+            return self.handler.drop(unwanted)
+        assert isinstance(self.handler, _JsonLines) and self.path is not None
+        dropped = 0
+        with self.handler.writers.held():
+            for index in range(self.backups + 1):
+                path = self.path if index == 0 else self.path.with_name(f"{self.path.name}.{index}")
+                try:
+                    lines = path.read_bytes().decode("utf-8", errors="replace").splitlines(keepends=True)
+                except FileNotFoundError:
+                    continue
+                kept = [line for line in lines if not unwanted(line)]
+                if len(kept) == len(lines):
+                    continue
+                dropped += len(lines) - len(kept)
+                # A new file replaces the old one: writers notice (another inode) and reopen; the old blocks are
+                # the file system's, no longer any file's.
+                fresh = path.with_name(path.name + ".forgetting")
+                fresh.write_text("".join(kept), encoding="utf-8")
+                fresh.replace(path)
+        return dropped
 
     def read(self, limit: int, level: str = "DEBUG", contains: str | None = None) -> list[Entry]:
         """Up to `limit` entries at `level` or above whose text holds `contains` (any case), newest first, with

@@ -130,6 +130,9 @@ class ContextState:
     def close(self) -> None:
         self._db.close()
 
+    def compact(self) -> None:
+        self._db.compact()
+
     # --- contexts ------------------------------------------------------------------------------------
 
     def context(self, uri: str) -> Context | None:
@@ -259,9 +262,49 @@ class ContextState:
             "INSERT INTO rejected_pairs (source, candidate) VALUES (?, ?) ON CONFLICT DO NOTHING", (source, candidate)
         )
 
+    # --- forgetting ----------------------------------------------------------------------------------
+
+    def forget(self, iris: set[str], texts: set[str]) -> int:
+        """Remove every observation, context, alias and review case naming one of `iris` (a person erased, their
+        shared events) or quoting one of `texts`; returns the rows removed. In the caller's transaction."""
+        removed = 0
+        for iri in sorted(iris):
+            for sql in _FORGET_BY_IRI:
+                removed += self._db.execute(sql, (iri,) * sql.count("?")).rowcount or 0
+        for text in sorted(texts):
+            for sql in _FORGET_BY_TEXT:
+                removed += self._db.execute(sql, (text,) * sql.count("?")).rowcount or 0
+        return removed
+
+    def forget_before(self, cutoff: str) -> int:
+        """Remove observations recorded before `cutoff` (ISO 8601 UTC), and contexts left with none."""
+        removed = self._db.execute("DELETE FROM observations WHERE recorded_at < ?", (cutoff,)).rowcount or 0
+        removed += (
+            self._db.execute(
+                "DELETE FROM contexts WHERE updated_at < ? AND uri NOT IN (SELECT context_uri FROM observations)",
+                (cutoff,),
+            ).rowcount
+            or 0
+        )
+        return removed
+
     def rejected_candidates(self, source: str) -> set[str]:
         rows = self._db.execute("SELECT candidate FROM rejected_pairs WHERE source = ?", (source,))
         return {row[0] for row in rows}
+
+
+# Everything that can name a person or one of their shared events; a case's candidates are JSON, searched as text.
+_FORGET_BY_IRI = (
+    "DELETE FROM observations WHERE subject = ? OR context_uri = ? OR observation_uri = ?",
+    "DELETE FROM contexts WHERE subject = ? OR uri = ?",
+    "DELETE FROM aliases WHERE source = ? OR target = ?",
+    "DELETE FROM cases WHERE source_uri = ? OR selected_uri = ? OR candidates LIKE '%' || ? || '%'",
+    "DELETE FROM rejected_pairs WHERE source = ? OR candidate = ?",
+)
+_FORGET_BY_TEXT = (
+    "DELETE FROM observations WHERE text = ?",
+    "DELETE FROM contexts WHERE canonical_text = ?",
+)
 
 
 def _case(row: tuple[object, ...]) -> Case:

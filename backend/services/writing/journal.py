@@ -6,6 +6,9 @@ cumulative re-publish costs a membership test per triple and adds nothing. Tripl
 their N-Triples text, original lexical forms and datatypes included. The content is stored as an N-Triples
 document compressed with zlib; the receipt covers its SHA-256.
 
+An erasure (erasure.py) removes lines from posts' content and records what it did as an entry of its own; the
+chain stays whole, since receipts cover digests of their lines, not the lines themselves (redaction.py).
+
 Kept in the state database (backend/state): SQLite in DATA_DIR by default, PostgreSQL when STATE_URL names one.
 All work is blocking: async callers use a worker thread.
 """
@@ -22,6 +25,14 @@ from datetime import UTC, datetime
 
 from segb_server.backend.services.clock import utc_iso
 from segb_server.backend.services.errors import NotFound, ServiceError
+from segb_server.backend.services.writing.erasure import (
+    Erasure,
+    ErasureDone,
+    candidates,
+    erasure_receipt,
+    forget_digests,
+    redact,
+)
 from segb_server.backend.services.writing.receipts import (
     FIELD_NAMES,
     GENESIS_HASH,
@@ -29,6 +40,7 @@ from segb_server.backend.services.writing.receipts import (
     Receipt,
     Verification,
 )
+from segb_server.backend.services.writing.redaction import RedactionCheck, RedactionRecord, content_digest
 from segb_server.backend.state.database import Database
 
 JOURNAL_FILE = "ledger.sqlite3"  # the journal grew out of the ingest ledger and keeps its file
@@ -55,9 +67,20 @@ CREATE TABLE IF NOT EXISTS receipts (
 CREATE INDEX IF NOT EXISTS receipts_by_log_id ON receipts (log_id);
 CREATE TABLE IF NOT EXISTS journal_triples (digest {blob} PRIMARY KEY) {without_rowid};
 CREATE TABLE IF NOT EXISTS journal_state (name TEXT PRIMARY KEY, value BIGINT NOT NULL);
+CREATE TABLE IF NOT EXISTS erased_triples (digest {blob} PRIMARY KEY) {without_rowid};
+CREATE TABLE IF NOT EXISTS erasure_pending (sequence BIGINT PRIMARY KEY, content {blob} NOT NULL);
 """
 # Columns the journal added to the ledger's receipts table; added to an older file on opening (re-runnable).
-ADDED_COLUMNS = {"content_sha256": "TEXT", "content": "{blob}"}
+# `redacted_by` (the newest erasure that removed lines of the post) and `redacted_digests` (those lines'
+# digests) are the journal's own notes, outside the receipt's hash: the erasure's record is what covers them.
+ADDED_COLUMNS = {
+    "content_sha256": "TEXT",
+    "content": "{blob}",
+    "content_digest": "TEXT",
+    "triples_withheld": "INTEGER",
+    "redacted_by": "BIGINT",
+    "redacted_digests": "{blob}",
+}
 COLUMNS = ", ".join(f'"{name}"' for name in FIELD_NAMES)  # quoted: `user` is a reserved word in PostgreSQL
 
 
@@ -82,11 +105,13 @@ class PostEntry:
 
 @dataclass(frozen=True)
 class JournalEntry:
-    """One entry as the applier reads it: its place, what it did, its content (an N-Triples document)."""
+    """One entry as the applier reads it: its place, what it did, its content (an N-Triples document; empty
+    for a clearing or an erasure), and for an erasure not yet applied to the store, the lines it removed."""
 
     sequence: int
     action: str
     content: bytes
+    removed: bytes = b""
 
 
 def triple_digest(line: str) -> bytes:
@@ -111,6 +136,7 @@ class Journal:
         self._known: set[bytes] = set()
         self._known_epoch = -1
         self.storage_problem: str | None = None  # why the last write failed for want of space, until one works
+        self._any_erased: bool | None = None  # whether erased_triples holds any digest (None: not read yet)
         with self._lock:
             database.script(SCHEMA)
             with database.writing():
@@ -131,10 +157,11 @@ class Journal:
                     self._known, self._known_epoch = set(), epoch
                 sequence, previous = self._head(connection)
                 outcomes: list[Receipt | BaseException] = []
+                held_back: list[set[bytes]] = []
                 for post in posts:
                     connection.execute("SAVEPOINT post")
                     try:
-                        receipt, content = self._post_receipt(connection, post, sequence + 1, previous)
+                        receipt, content, withheld = self._post_receipt(connection, post, sequence + 1, previous)
                         self._insert(connection, receipt, content)
                     except Exception as error:
                         connection.execute("ROLLBACK TO post")
@@ -144,11 +171,14 @@ class Journal:
                         connection.execute("RELEASE post")
                     sequence, previous = receipt.sequence, receipt.receipt_hash
                     outcomes.append(receipt)
+                    held_back.append(withheld)
                 self._check_size()
-            # Committed: only now may the cache say these triples are in the journal.
+            # Committed: only now may the cache say these triples are in the journal (those held back are not:
+            # the next post re-sending them is told again).
             for post, outcome in zip(posts, outcomes, strict=True):
                 if isinstance(outcome, Receipt):
-                    self._known.update(post.digests)
+                    self._known.update(digest for digest in post.digests if digest not in held_back[0])
+                    held_back.pop(0)
         return outcomes
 
     def append_clear(self, *, log_id: str, user: str, claimed_user: str | None) -> Receipt:
@@ -158,6 +188,32 @@ class Journal:
             receipt, epoch = self._clear(log_id, user, claimed_user)
             self._known, self._known_epoch = set(), epoch
         return receipt
+
+    def append_erasure(self, erasure: Erasure) -> ErasureDone | None:
+        """Remove the lines `erasure` selects from every post's content and record it as one entry, in one
+        transaction; returns its receipt and the lines removed (None, and nothing recorded, when no post holds
+        such a line). The entry keeps the removed lines only until the store has dropped them
+        (`erasure_applied`)."""
+        found, scanned_through = candidates(self.database, self._lock, erasure.selection)
+        with self._lock, self._storage_errors():
+            with self._transaction() as connection:
+                sequence, previous = self._head(connection)
+                redaction = redact(connection, erasure, found, scanned_through, sequence + 1)
+                if not redaction.items:
+                    return None
+                digests = [triple_digest(line[:-2].decode()) for line in redaction.removed]
+                forget_digests(connection, digests, erasure.withhold)
+                record = RedactionRecord(erasure.kind, erasure.reason, redaction.items)
+                receipt = _chained(erasure_receipt(erasure, record, sequence + 1, previous))
+                self._insert(connection, receipt, record.document())
+                connection.execute(
+                    "INSERT INTO erasure_pending (sequence, content) VALUES (?, ?)",
+                    (receipt.sequence, zlib.compress(b"".join(line + b"\n" for line in redaction.removed))),
+                )
+            # The removed triples may come again (or, withheld, be told of again): the cache forgets them all.
+            self._known, self._known_epoch = set(), -1
+            self._any_erased = self._any_erased or erasure.withhold
+        return ErasureDone(receipt, len(redaction.items), redaction.removed)
 
     def _clear(self, log_id: str, user: str, claimed_user: str | None) -> tuple[Receipt, int]:
         with self._transaction() as connection:
@@ -181,16 +237,22 @@ class Journal:
 
     def _post_receipt(
         self, connection: Database, post: PostEntry, sequence: int, previous: str
-    ) -> tuple[Receipt, bytes]:
+    ) -> tuple[Receipt, bytes, set[bytes]]:
+        """The post's receipt and content, and the digests of its triples an erasure removed: those are not
+        recorded again (a robot's client re-sends everything it ever logged), and the receipt counts them."""
         unknown = [index for index, digest in enumerate(post.digests) if digest not in self._known]
         new_digests = _insert_new_digests(connection, [post.digests[index] for index in unknown])
-        new_lines = [post.lines[index] for index in unknown if post.digests[index] in new_digests]
+        withheld = erased_among(connection, new_digests) if new_digests and self._erasures(connection) else set()
+        new_lines = [
+            post.lines[i] for i in unknown if post.digests[i] in new_digests and post.digests[i] not in withheld
+        ]
         content = ntriples_document(new_lines)
         receipt = Receipt(
             sequence, post.log_id, "ingest", post.user, post.claimed_user, utc_iso(), post.payload_sha256,
             len(post.lines), len(new_lines), 0, hashlib.sha256(content).hexdigest(), previous, "",
+            content_digest(content), len(withheld),
         )  # fmt: skip
-        return _chained(receipt), content
+        return _chained(receipt), content, withheld
 
     def _insert(self, connection: Database, receipt: Receipt, content: bytes) -> None:
         connection.execute(
@@ -238,15 +300,35 @@ class Journal:
         """Up to `limit` entries after `sequence`, oldest first, content decompressed."""
         with self._lock:
             rows = self.database.execute(
-                "SELECT sequence, action, content FROM receipts WHERE sequence > ? ORDER BY sequence LIMIT ?",
+                "SELECT r.sequence, r.action, r.content, p.content FROM receipts r "
+                "LEFT JOIN erasure_pending p ON p.sequence = r.sequence WHERE r.sequence > ? "
+                "ORDER BY r.sequence LIMIT ?",
                 (sequence, limit),
             ).fetchall()
-        return [JournalEntry(number, action, _inflate(blob)) for number, action, blob in rows]
+        return [
+            JournalEntry(number, action, _inflate(blob) if action == "ingest" else b"", _inflate(removed))
+            for number, action, blob, removed in rows
+        ]
+
+    def erasure_applied(self, through: int) -> None:
+        """The store has applied every erasure through `through`: the lines they removed are kept no longer."""
+        with self._lock, self._transaction() as connection:
+            connection.execute("DELETE FROM erasure_pending WHERE sequence <= ?", (through,))
 
     def last_clearing(self) -> int:
         """The sequence of the newest clearing (0 when there was none): the store holds what came after it."""
         with self._lock:
             found = self.database.execute("SELECT MAX(sequence) FROM receipts WHERE action = 'delete_all'")
+            return found.fetchone()[0] or 0
+
+    def last_applied_erasure(self) -> int:
+        """The newest erasure the store has applied, as far as the journal knows (its removed lines are no
+        longer kept); 0 when there is none."""
+        with self._lock:
+            found = self.database.execute(
+                "SELECT MAX(sequence) FROM receipts WHERE action = 'erase' "
+                "AND sequence NOT IN (SELECT sequence FROM erasure_pending)"
+            )
             return found.fetchone()[0] or 0
 
     def received_documents(self, batch_entries: int = 200) -> Iterator[bytes]:
@@ -258,22 +340,37 @@ class Journal:
                     yield entry.content
             position = entries[-1].sequence
 
+    def redaction_records(self) -> list[tuple[Receipt, RedactionRecord]]:
+        """Every erasure's receipt and record, oldest first."""
+        with self._lock:
+            rows = self.database.execute(
+                f"SELECT {COLUMNS}, content FROM receipts WHERE action = 'erase' ORDER BY sequence"
+            ).fetchall()
+        return [(Receipt(*row[:-1]), RedactionRecord.parse(_inflate(row[-1]))) for row in rows]
+
     def verify(self, *, deep: bool = False) -> Verification:
-        """Recompute every hash and link, oldest first (and with `deep`, every content's hash); report the
-        first receipt where the chain fails. Reads one consistent state, in batches (a whole journal's content
-        would not fit in memory)."""
+        """Recompute every hash and link, oldest first (and with `deep`, every content's digests, redacted ones
+        against the erasures' records); report the first receipt where the chain fails. Reads one consistent
+        state, in batches (a whole journal's content would not fit in memory)."""
         check = ChainCheck()
-        columns = f"{COLUMNS}, content" if deep else COLUMNS
+        columns = f"{COLUMNS}, content, redacted_digests" if deep else COLUMNS
         query = f"SELECT {columns} FROM receipts WHERE sequence > ? ORDER BY sequence LIMIT {_ROWS_PER_VERIFY}"
         with self._lock, self.database.reading():
+            records = [
+                (sequence, RedactionRecord.parse(_inflate(blob)))
+                for sequence, blob in self.database.execute(
+                    "SELECT sequence, content FROM receipts WHERE action = 'erase'"
+                ).fetchall()
+            ]
+            redactions = RedactionCheck(records)
             position = 0
             while rows := self.database.execute(query, (position,)).fetchall():
                 for row in rows:
                     receipt = Receipt(*row[: len(FIELD_NAMES)])
-                    content_hash = hashlib.sha256(_inflate(row[-1])).hexdigest() if deep else None
-                    check.add(receipt, content_hash)
+                    fault = redactions.fault(receipt, _inflate(row[-2]), row[-1] or b"") if deep else None
+                    check.add(receipt, fault)
                 position = rows[-1][0]
-        return Verification(check.count, check.first_broken, deep)
+        return Verification(check.count, check.first_broken, deep, len(records))
 
     def close(self) -> None:
         with self._lock:
@@ -285,6 +382,12 @@ class Journal:
         last = connection.execute("SELECT sequence, receipt_hash FROM receipts ORDER BY sequence DESC LIMIT 1")
         row = last.fetchone()
         return (row[0], row[1]) if row else (0, GENESIS_HASH)
+
+    def _erasures(self, connection: Database) -> bool:
+        """Whether any erasure withheld triples from coming back (read once a process; erasures set it)."""
+        if self._any_erased is None:
+            self._any_erased = connection.execute("SELECT 1 FROM erased_triples LIMIT 1").fetchone() is not None
+        return self._any_erased
 
     def _epoch(self, connection: Database) -> int:
         row = connection.execute("SELECT value FROM journal_state WHERE name = 'epoch'").fetchone()
@@ -341,6 +444,23 @@ def _chained(receipt: Receipt) -> Receipt:
 
 def _inflate(blob: bytes | None) -> bytes:
     return zlib.decompress(blob) if blob else b""
+
+
+def erased_among(connection: Database, digests: set[bytes]) -> set[bytes]:
+    """Those of `digests` an erasure withheld: taken out of the journal's triples again, and returned."""
+    found: set[bytes] = set()
+    ordered = list(digests)
+    for start in range(0, len(ordered), _ROWS_PER_INSERT):
+        chunk = ordered[start : start + _ROWS_PER_INSERT]
+        marks = ", ".join(["?"] * len(chunk))
+        found.update(
+            row[0] for row in connection.execute(f"SELECT digest FROM erased_triples WHERE digest IN ({marks})", chunk)
+        )
+    withheld = list(found)
+    for start in range(0, len(withheld), _ROWS_PER_INSERT):
+        chunk = withheld[start : start + _ROWS_PER_INSERT]
+        connection.execute(f"DELETE FROM journal_triples WHERE digest IN ({', '.join(['?'] * len(chunk))})", chunk)
+    return found
 
 
 def _insert_new_digests(connection: Database, digests: list[bytes]) -> set[bytes]:
