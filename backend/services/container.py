@@ -13,6 +13,7 @@ from segb_server.backend.services.ops.result_cache import DataVersion, ResultCac
 from segb_server.backend.services.ops.server_log import ServerLog
 from segb_server.backend.services.people.erasure import RULE as ERASURE_RULE
 from segb_server.backend.services.people.erasure import ErasureService
+from segb_server.backend.services.people.export import STORY, PersonExport
 from segb_server.backend.services.people.places import forgetting
 from segb_server.backend.services.reports.service import FOLDER as REPORTS_FOLDER
 from segb_server.backend.services.reports.service import ReportService
@@ -28,7 +29,7 @@ from segb_server.backend.state.opening import open_state
 from segb_server.backend.store.base import Store
 
 # What the reports, the graph explorer and the explanations run; without them the server must not start.
-REQUIRED_QUERIES = ("reports/", "graph/resource-in", "graph/resource-out", ERASURE_RULE)
+REQUIRED_QUERIES = ("reports/", "graph/resource-in", "graph/resource-out", ERASURE_RULE, STORY)
 # Stores written only through this server (the journal's applier), whose cached results a write invalidates.
 OWNED_STORES = {"oxigraph", "memory"}
 REPORTS_FILE = "reports.sqlite3"  # the reports' rows, kept current; rebuilt from the store when missing
@@ -48,6 +49,7 @@ class Services:
     shared_context: SharedContextService
     queries: QueryRunner
     erasure: ErasureService
+    people_export: PersonExport
     server_log: ServerLog | None = None  # the API's own log; None where nothing serves it (the CLI, the demo)
 
     def start(self) -> None:
@@ -97,6 +99,7 @@ def build_services(
     )
     view_files = [folder / REPORTS_FILE, folder / GRAPH_FILE] if folder else []
     places = forgetting(writes.journal, shared_context, queries, server_log, view_files)
+    erasure = ErasureService(store, catalog.get(ERASURE_RULE), writes, places)
     return Services(
         settings=settings,
         store=store,
@@ -115,6 +118,7 @@ def build_services(
         explain=ExplainService(graph),
         shared_context=shared_context,
         queries=queries,
-        erasure=ErasureService(store, catalog.get(ERASURE_RULE), writes, places),
+        erasure=erasure,
+        people_export=PersonExport(store, erasure, catalog.get(STORY)),
         server_log=server_log,
     )

@@ -3,6 +3,7 @@ received, and a check of the hash chain."""
 
 from __future__ import annotations
 
+import json
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Query, Request
@@ -115,7 +116,11 @@ async def verify_ledger(
         "The receipt and its content: the post's new triples exactly as received (original lexical forms, "
         "datatypes and language tags; blank nodes skolemised), as an N-Triples document. JSON "
         "`{receipt, content}` by default; `Accept: application/n-triples` (or `?format=ntriples`) gives the "
-        "document alone, whose SHA-256 is the receipt's `content_sha256`. 404 for an unknown `log_id`."
+        "document alone, whose SHA-256 is the receipt's `content_sha256` (unless an erasure removed triples from it "
+        "since: the receipt's `content_digest` and the erasure's record then verify it). An erasure's entry "
+        "answers `{receipt, content: null, redaction}`: its record (kind, reason, and for each post it redacted "
+        "its `sequence`, `log_id`, `triples_removed` and the `remaining_sha256` of what is left). 404 for an "
+        "unknown `log_id`."
     ),
     responses={200: {"content": {"application/json": {}, "application/n-triples": {}}}, 404: {}},
 )
@@ -124,6 +129,11 @@ async def receipt(
 ) -> Response:
     fmt = negotiate(_CONTENT_FORMATS, request.headers.get("accept"), format, what="a receipt")
     found, content = await run_in_threadpool(services.writes.journal.entry, log_id)
+    if found.action == "erase":  # its content is the erasure's record, not triples
+        record = json.loads(content or b"{}")
+        if fmt.name == "ntriples":
+            return Response(b"", media_type=fmt.media_type)
+        return FastJSONResponse({"receipt": found.public(), "content": None, "redaction": record})
     if fmt.name == "ntriples":
         return Response(content or b"", media_type=fmt.media_type)
     body = {"receipt": found.public(), "content": None if content is None else content.decode("utf-8")}

@@ -3,11 +3,17 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter
+from fastapi import APIRouter, Query, Request
+from fastapi.concurrency import run_in_threadpool
+from fastapi.responses import Response
 from pydantic import BaseModel, Field
+from pyoxigraph import NamedNode
 
 from segb_server.backend.api.deps import Admin, ServicesDep
+from segb_server.backend.services.formats import PERSON_EXPORTS, names, negotiate
+from segb_server.backend.services.graph.export import write_graph
 from segb_server.backend.services.people.erasure import MAX_REASON
+from segb_server.backend.services.people.story_page import story_page
 from segb_server.backend.services.sparql.catalog import Parameter, to_term
 
 router = APIRouter(tags=["people"])
@@ -28,6 +34,10 @@ class ErasureAnswer(BaseModel):
     triples_removed: int = Field(description="Triples removed from the posts' content (and from the store).")
     receipts_redacted: int = Field(description="Posts whose content lost triples.")
     resources: int = Field(description="Resources erased with the person (their messages, emotions read, …).")
+    name_still_mentioned: int = Field(
+        description="Texts left in the log that still contain the person's first name: a robot's reply or an "
+        "activity's label, which the rule keeps (free text is not rewritten). Look for them with /sparql."
+    )
     views_rebuilt: bool = Field(
         description="Whether the reports' rows and the graph index were built again before answering; until they "
         "are, reports are evaluated by their queries and the graph answers 503."
@@ -61,4 +71,34 @@ def erase_human(body: ErasureRequest, services: ServicesDep, principal: Admin) -
         receipts_redacted=done.receipts_redacted,
         resources=done.resources,
         views_rebuilt=done.views_rebuilt,
+        name_still_mentioned=done.name_still_mentioned,
     )
+
+
+@router.get(
+    "/humans/{iri:path}/export",
+    summary="Everything held about one person",
+    description=(
+        "A person's data (GDPR Art. 15): every triple the store holds about them — exactly what erasing them "
+        "would remove — as Turtle, N-Triples or JSON-LD, or (`text/html`, the default for a browser; "
+        "`?format=html`) a self-contained page telling it in time order: what they said and to which robot, what "
+        "a robot replied, which emotions were read on them with which model, when they were seen. The IRI is "
+        "percent-encoded in the path; the server log writes the path without it. 404 when nothing is held."
+    ),
+    responses={200: {"content": {fmt.media_type: {} for fmt in PERSON_EXPORTS}}, 404: {}, 406: {}},
+)
+async def export_human(
+    iri: str,
+    request: Request,
+    services: ServicesDep,
+    principal: Admin,
+    format: str | None = Query(None, description=f"{', '.join(names(PERSON_EXPORTS))}; overrides Accept."),
+) -> Response:
+    fmt = negotiate(PERSON_EXPORTS, request.headers.get("accept"), format, what="a person's data")
+    human = to_term(Parameter("iri", "iri"), iri).value
+    data = await run_in_threadpool(services.people_export.export, human)
+    disposition = {"Content-Disposition": f'attachment; filename="person.{fmt.extension}"'}
+    if fmt.rdf is None:
+        return Response(story_page(data), media_type=fmt.content_type, headers=disposition)
+    body = b"".join(write_graph([data.triples], fmt, NamedNode(services.store.graph_uri)))
+    return Response(body, media_type=fmt.content_type, headers=disposition)

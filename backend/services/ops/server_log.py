@@ -16,6 +16,7 @@ import os
 import threading
 from collections import deque
 from collections.abc import Callable, Collection, Iterable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, BinaryIO
 from urllib.parse import quote
@@ -209,7 +210,8 @@ class ServerLog:
             return self.handler.drop(unwanted)
         assert isinstance(self.handler, _JsonLines) and self.path is not None
         dropped = 0
-        with self.handler.writers.held():
+        # The handler's own lock keeps this process's writers out (the file lock, other processes').
+        with _holding(self.handler), self.handler.writers.held():
             for index in range(self.backups + 1):
                 path = self.path if index == 0 else self.path.with_name(f"{self.path.name}.{index}")
                 try:
@@ -257,6 +259,15 @@ class ServerLog:
             except FileNotFoundError:
                 continue
             yield from _parsed(reversed(lines))
+
+
+@contextmanager
+def _holding(handler: logging.Handler) -> Iterator[None]:
+    handler.acquire()
+    try:
+        yield
+    finally:
+        handler.release()
 
 
 def _parsed(lines: Iterable[str]) -> Iterator[tuple[Entry, str]]:

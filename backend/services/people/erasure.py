@@ -57,6 +57,9 @@ class ErasureResult:
     receipts_redacted: int
     resources: int
     views_rebuilt: bool
+    # Literals the rule keeps (a robot's reply, an activity's label) that still hold the person's first name:
+    # free text is not rewritten, and whoever erases should know what remains.
+    name_still_mentioned: int = 0
 
 
 class ErasureService:
@@ -101,7 +104,9 @@ class ErasureService:
                 "erasure log_id=%s actor=%s kind=human resources=%d triples=%d",
                 receipt.log_id, actor, len(found), receipt.triples_removed,
             )  # fmt: skip
-            return ErasureResult(receipt, done.posts, len(found), self._forget(receipt, forgotten))
+            rebuilt = self._forget(receipt, forgotten)
+            mentions = self._mentions(_first_names(done.removed, human))
+            return ErasureResult(receipt, done.posts, len(found), rebuilt, mentions)
 
     def erase_before(self, cutoff: str, reason: str, actor: str) -> ErasureResult | None:
         """Retention: every post recorded before `cutoff` loses its content; None when none had any."""
@@ -147,6 +152,14 @@ class ErasureService:
         threading.Thread(target=self._after_views, args=(receipt, forgotten), daemon=True).start()
         return False
 
+    def _mentions(self, names: set[str]) -> int:
+        """How many literals left in the store contain one of `names` (any case)."""
+        if not names:
+            return 0
+        tests = " || ".join(f"CONTAINS(LCASE(STR(?o)), {_string(name.lower())})" for name in sorted(names))
+        rows = select(self.store, f"SELECT (COUNT(*) AS ?n) WHERE {{ ?s ?p ?o FILTER (isLiteral(?o) && ({tests})) }}")
+        return int(rows.rows[0]["n"].value) if rows.rows else 0
+
     def _apply(self) -> None:
         """Apply what is pending in this thread where this process applies (a command-line erasure has no
         applier thread); the applier's thread would otherwise take it."""
@@ -167,6 +180,20 @@ def _checked_reason(reason: str) -> str:
     if len(reason) > MAX_REASON:
         raise InvalidParameter("reason", f"at most {MAX_REASON} characters")
     return reason
+
+
+FIRST_NAME = "http://xmlns.com/foaf/0.1/firstName"
+
+
+def _first_names(lines: list[bytes], human: str) -> set[str]:
+    subject = f"<{human}> <{FIRST_NAME}> ".encode()
+    found = [line for line in lines if line.startswith(subject)]
+    return {q.object.value for q in parse(b"".join(x + b"\n" for x in found), RdfFormat.N_TRIPLES)} if found else set()
+
+
+def _string(text: str) -> str:
+    """A SPARQL string literal for `text` (N-Triples escaping: nothing in it can end the literal)."""
+    return str(Literal(text))
 
 
 def _texts(lines: list[bytes]) -> set[str]:
