@@ -54,8 +54,9 @@ class VerificationOut(BaseModel):
     deep: bool | None = Field(None, description="True when every entry's content was hashed again too.")
     redactions: int | None = Field(
         None,
-        description="Erasures in the chain (only when there are any): each removed triples from earlier posts and is recorded as an entry "
-        "(who, when, why, which posts); a deep check verifies what remains of those posts against it.",
+        description="Erasures in the chain (only when there are any): each removed triples from earlier posts and "
+        "is recorded as an entry (who, when, why, which posts); a deep check verifies what remains of those posts "
+        "against it.",
     )
     first_broken: BrokenLinkOut | None = Field(None, description="Only when the chain is broken.")
 

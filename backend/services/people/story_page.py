@@ -27,7 +27,8 @@ statements, listed below in full, and what they tell in time order.</p>
 {% endfor %}</tbody></table>{% else %}<p class="muted">Nothing with a time.</p>{% endif %}
 <h2>Every statement</h2>
 <table><thead><tr><th>Subject</th><th>Property</th><th>Value</th></tr></thead><tbody>
-{% for t in triples %}<tr><td><code>{{ t[0] }}</code></td><td><code>{{ t[1] }}</code></td><td><code>{{ t[2] }}</code></td></tr>
+{% for t in triples %}<tr><td><code>{{ t[0] }}</code></td><td><code>{{ t[1] }}</code></td>
+<td><code>{{ t[2] }}</code></td></tr>
 {% endfor %}</tbody></table>
 </body></html>
 """
