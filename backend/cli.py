@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 from pydantic import ValidationError
 from tqdm import tqdm
 
-from segb_server.backend import cli_people
+from segb_server.backend import cli_evidence, cli_people
 from segb_server.backend.config import Settings
 from segb_server.backend.services.errors import ServiceError
 from segb_server.backend.state.database import StateUnavailable
@@ -115,6 +115,12 @@ def _parser() -> argparse.ArgumentParser:
 
     cli_people.add_erase(commands, _store_options)
     commands.choices["erase"].set_defaults(handler=_erase)
+    cli_evidence.add_commands(commands, _store_options)
+    commands.choices["evidence"].set_defaults(
+        handler=lambda args: cli_evidence.evidence(args, _settings(args), _services)
+    )
+    commands.choices["evidence-key"].set_defaults(handler=lambda args: cli_evidence.evidence_key(args, _settings(args)))
+    commands.choices["verify-evidence"].set_defaults(handler=cli_evidence.verify_evidence)
 
     demo = commands.add_parser("demo", help="publish the demo dataset (robots ARI and TIAGo) to a running server")
     demo.add_argument("--server", help="API base URL (default http://127.0.0.1:<API_PORT>)")

@@ -18,6 +18,7 @@ from segb_server.backend.api.request_context import RequestContext
 from segb_server.backend.api.routes import (
     auth,
     events,
+    evidence,
     graph,
     health,
     ingest,
@@ -59,6 +60,7 @@ ROUTERS = [
     ingest.router,
     validate.router,
     events.router,
+    evidence.router,
     graph.router,
     ledger.router,
     sparql.router,

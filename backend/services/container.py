@@ -5,6 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from segb_server.backend.config import Settings
+from segb_server.backend.services.evidence.bundle import WINDOW, EvidenceService
+from segb_server.backend.services.evidence.key import ServerKey
 from segb_server.backend.services.explain.service import TOLD_LITERALS, ExplainService
 from segb_server.backend.services.graph.index import GraphIndex
 from segb_server.backend.services.graph.service import GraphService
@@ -29,7 +31,7 @@ from segb_server.backend.state.opening import open_state
 from segb_server.backend.store.base import Store
 
 # What the reports, the graph explorer and the explanations run; without them the server must not start.
-REQUIRED_QUERIES = ("reports/", "graph/resource-in", "graph/resource-out", ERASURE_RULE, STORY)
+REQUIRED_QUERIES = ("reports/", "graph/resource-in", "graph/resource-out", ERASURE_RULE, STORY, WINDOW)
 # Stores written only through this server (the journal's applier), whose cached results a write invalidates.
 OWNED_STORES = {"oxigraph", "memory"}
 REPORTS_FILE = "reports.sqlite3"  # the reports' rows, kept current; rebuilt from the store when missing
@@ -50,6 +52,7 @@ class Services:
     queries: QueryRunner
     erasure: ErasureService
     people_export: PersonExport
+    evidence: EvidenceService
     server_log: ServerLog | None = None  # the API's own log; None where nothing serves it (the CLI, the demo)
 
     def start(self) -> None:
@@ -120,5 +123,8 @@ def build_services(
         queries=queries,
         erasure=erasure,
         people_export=PersonExport(store, erasure, catalog.get(STORY)),
+        evidence=EvidenceService(
+            store, writes.journal, catalog.get(WINDOW), ServerKey.at(folder) if folder else ServerKey.in_memory()
+        ),
         server_log=server_log,
     )

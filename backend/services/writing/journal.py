@@ -340,6 +340,36 @@ class Journal:
                     yield entry.content
             position = entries[-1].sequence
 
+    def posts_since_clearing(self, batch: int = 200) -> Iterator[tuple[Receipt, bytes, bytes]]:
+        """Every post since the last clearing, oldest first: its receipt, its content and the digests of the
+        lines erasures removed from it."""
+        position = self.last_clearing()
+        query = (
+            f"SELECT {COLUMNS}, content, redacted_digests FROM receipts WHERE sequence > ? AND action = 'ingest' "
+            "ORDER BY sequence LIMIT ?"
+        )
+        while True:
+            with self._lock:
+                rows = self.database.execute(query, (position, batch)).fetchall()
+            if not rows:
+                return
+            for row in rows:
+                yield Receipt(*row[: len(FIELD_NAMES)]), _inflate(row[-2]), bytes(row[-1] or b"")
+            position = rows[-1][0]
+
+    def receipts_after(self, sequence: int, batch: int = 1000) -> Iterator[Receipt]:
+        """Every receipt after `sequence`, oldest first."""
+        position = sequence
+        while True:
+            with self._lock:
+                rows = self.database.execute(
+                    f"SELECT {COLUMNS} FROM receipts WHERE sequence > ? ORDER BY sequence LIMIT ?", (position, batch)
+                ).fetchall()
+            if not rows:
+                return
+            yield from (Receipt(*row) for row in rows)
+            position = rows[-1][0]
+
     def redaction_records(self) -> list[tuple[Receipt, RedactionRecord]]:
         """Every erasure's receipt and record, oldest first."""
         with self._lock:
