@@ -21,7 +21,7 @@ ServicesOf = Callable[[Settings], contextlib.AbstractContextManager["Services"]]
 StoreOptions = Callable[[argparse.ArgumentParser], None]
 
 
-def add_commands(commands: argparse._SubParsersAction, store_options: StoreOptions) -> None:  # type: ignore[type-arg]
+def add_commands(commands: argparse._SubParsersAction, store_options: StoreOptions) -> None:
     evidence = commands.add_parser("evidence", help="write a signed evidence bundle of one window (a zip archive)")
     store_options(evidence)
     evidence.add_argument("--robot", metavar="IRI", help="only what this robot did (default: every robot)")

@@ -19,7 +19,7 @@ if TYPE_CHECKING:
 ServicesOf = Callable[[Settings], contextlib.AbstractContextManager["Services"]]
 
 
-def add_erase(commands: argparse._SubParsersAction, store_options: Callable[[argparse.ArgumentParser], None]) -> None:  # type: ignore[type-arg]
+def add_erase(commands: argparse._SubParsersAction, store_options: Callable[[argparse.ArgumentParser], None]) -> None:
     erase = commands.add_parser(
         "erase", help="erase one person everywhere the server keeps data (their words, emotions read on them, …)"
     )

@@ -7,10 +7,10 @@ from __future__ import annotations
 from collections.abc import Iterator
 from dataclasses import dataclass
 
-from pyoxigraph import NamedNode, Triple
+from pyoxigraph import Literal, NamedNode, Triple
 
 from segb_server.backend.services.errors import NotFound
-from segb_server.backend.services.people.erasure import ErasureService
+from segb_server.backend.services.people.erasure import FIRST_NAME, ErasureService
 from segb_server.backend.services.sparql.catalog import CatalogQuery
 from segb_server.backend.services.values import JsonValue, json_value
 from segb_server.backend.store.base import Store, select
@@ -47,7 +47,7 @@ class PersonExport:
         names = [
             t.object.value
             for t in triples
-            if str(t.subject) == f"<{human}>" and t.predicate.value.endswith("/firstName")
+            if isinstance(t.object, Literal) and str(t.subject) == f"<{human}>" and t.predicate.value == FIRST_NAME
         ]
         return PersonData(human, names[0] if names else None, triples, story)
 

@@ -3,6 +3,8 @@ every value from the log escaped."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 from jinja2 import Environment
 
 from segb_server.backend.services.clock import utc_iso
@@ -42,7 +44,7 @@ def story_page(data: PersonData) -> str:
     return _PAGE.render(data=data, name=name, rows=rows, triples=triples, exported=utc_iso(timespec="seconds"))
 
 
-def _sentence(row: dict[str, object], name: str) -> str:
+def _sentence(row: Mapping[str, object], name: str) -> str:
     """One honest sentence per row: a robot is named only for what the log says it did, a model only beside the
     reading it made."""
     robot = row.get("robotName") or row.get("robot") or "a robot"

@@ -15,6 +15,7 @@ import zlib
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import AbstractContextManager
 from dataclasses import dataclass
+from typing import Any
 
 from segb_server.backend.services.clock import utc_iso
 from segb_server.backend.services.writing.receipts import Receipt
@@ -130,7 +131,7 @@ def redact(
     return Redaction(items, removed)
 
 
-def _posts(connection: Database, found: list[int], scanned_through: int) -> Iterator[tuple[object, ...]]:
+def _posts(connection: Database, found: list[int], scanned_through: int) -> Iterator[Any]:
     columns = "SELECT sequence, log_id, recorded_at, content, redacted_digests FROM receipts WHERE action = 'ingest'"
     for start in range(0, len(found), _ROWS_PER_STATEMENT):
         chunk = found[start : start + _ROWS_PER_STATEMENT]
