@@ -27,6 +27,7 @@ from segb_server.ui.routes import (
     ledger,
     live,
     logs,
+    people,
     query,
     reports,
     session,
@@ -51,6 +52,7 @@ ROUTERS = [
     export.router,
     live.router,
     logs.router,
+    people.router,
 ]
 
 

@@ -13,7 +13,7 @@ from segb_server.backend.api.deps import Admin, ServicesDep
 from segb_server.backend.services.formats import PERSON_EXPORTS, names, negotiate
 from segb_server.backend.services.graph.export import write_graph
 from segb_server.backend.services.people.erasure import MAX_REASON
-from segb_server.backend.services.people.story_page import story_page
+from segb_server.backend.services.people.story_page import PAGE_POLICY, story_page
 from segb_server.backend.services.sparql.catalog import Parameter, to_term
 
 router = APIRouter(tags=["people"])
@@ -99,6 +99,7 @@ async def export_human(
     data = await run_in_threadpool(services.people_export.export, human)
     disposition = {"Content-Disposition": f'attachment; filename="person.{fmt.extension}"'}
     if fmt.rdf is None:
-        return Response(story_page(data), media_type=fmt.content_type, headers=disposition)
+        headers = {**disposition, "Content-Security-Policy": PAGE_POLICY}
+        return Response(story_page(data), media_type=fmt.content_type, headers=headers)
     body = b"".join(write_graph([data.triples], fmt, NamedNode(services.store.graph_uri)))
     return Response(body, media_type=fmt.content_type, headers=disposition)

@@ -12,7 +12,7 @@ from segb_server.backend.services.values import JsonValue
 _PAGE = Environment(autoescape=True).from_string(
     """<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>Timeline — {{ title }}</title>
-<style>
+<link rel="icon" href="data:,"><style>
 body{font:14px/1.45 system-ui,sans-serif;margin:1.5rem;color:#1b1f24}table{border-collapse:collapse;width:100%}
 th,td{text-align:left;padding:.3rem .5rem;border-bottom:1px solid #d0d7de;vertical-align:top}th{background:#f3f5f7}
 code{font-size:.85em;word-break:break-all}.kind{white-space:nowrap;color:#57606a}

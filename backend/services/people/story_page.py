@@ -11,10 +11,14 @@ from segb_server.backend.services.clock import utc_iso
 from segb_server.backend.services.people.export import PersonData
 from segb_server.backend.vocabulary import compact
 
+# The page's one stylesheet is inline (it opens with no server); it has no script, so a policy allowing only that
+# style is what serves it.
+PAGE_POLICY = "default-src 'none'; style-src 'unsafe-inline'; img-src data:; base-uri 'none'; form-action 'none'"
+
 _PAGE = Environment(autoescape=True).from_string(
     """<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>What the robots' log holds about {{ name }}</title>
-<meta name="viewport" content="width=device-width, initial-scale=1">
+<meta name="viewport" content="width=device-width, initial-scale=1"><link rel="icon" href="data:,">
 <style>
 body{font:15px/1.5 system-ui,sans-serif;max-width:60rem;margin:2rem auto;padding:0 1rem;color:#1b1f24}
 table{border-collapse:collapse;width:100%}th,td{text-align:left;padding:.35rem .5rem;border-bottom:1px solid #d0d7de;
