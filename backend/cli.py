@@ -115,6 +115,10 @@ def _parser() -> argparse.ArgumentParser:
 
     cli_people.add_erase(commands, _store_options)
     commands.choices["erase"].set_defaults(handler=_erase)
+    cli_people.add_retention(commands, _store_options)
+    commands.choices["retention"].set_defaults(
+        handler=lambda args: cli_people.retention(args, _settings(args, "retention_days"), _services)
+    )
     cli_evidence.add_commands(commands, _store_options)
     commands.choices["evidence"].set_defaults(
         handler=lambda args: cli_evidence.evidence(args, _settings(args), _services)

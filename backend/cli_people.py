@@ -31,6 +31,42 @@ def add_erase(commands: argparse._SubParsersAction, store_options: Callable[[arg
     erase.add_argument("--by", help="who erases, as the ledger records it (default: the system user)")
 
 
+def add_retention(
+    commands: argparse._SubParsersAction, store_options: Callable[[argparse.ArgumentParser], None]
+) -> None:
+    retention = commands.add_parser(
+        "retention", help="erase now what RETENTION_DAYS says is past keeping (the server does it on schedule)"
+    )
+    store_options(retention)
+    retention.add_argument("--days", dest="retention_days", type=int, help="days kept (RETENTION_DAYS)")
+    retention.add_argument("--as-of", metavar="TIME", help="count from this time instead of now (ISO 8601 with a zone)")
+
+
+def retention(args: argparse.Namespace, settings: Settings, services_of: ServicesOf) -> int:
+    from datetime import datetime
+
+    from segb_server.backend.services.people.retention import Retention
+
+    if settings.retention_days is None:
+        print("segb: error: no retention is set: RETENTION_DAYS (or --days) is empty, posts are kept forever",
+              file=sys.stderr)  # fmt: skip
+        return 2
+    now = datetime.fromisoformat(args.as_of.replace("Z", "+00:00")) if args.as_of else None
+    if now is not None and now.tzinfo is None:
+        print("segb: error: --as-of needs a time zone, e.g. 2027-01-01T00:00:00Z", file=sys.stderr)
+        return 2
+    with services_of(settings) as services:
+        services.start()
+        keeper = Retention(services.erasure, settings.retention_days, 0, lambda: True)
+        done = keeper.run_once(now)
+    if done is None:
+        print("nothing is past retention")
+    else:
+        print(f"erased {done.receipt.triples_removed} triples from {done.receipts_redacted} posts past retention; "
+              f"ledger entry {done.receipt.sequence}")  # fmt: skip
+    return 0
+
+
 def erase(args: argparse.Namespace, settings: Settings, services_of: ServicesOf) -> int:
     from segb_server.backend.services.sparql.catalog import Parameter, to_term
 

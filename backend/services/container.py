@@ -17,6 +17,7 @@ from segb_server.backend.services.people.erasure import RULE as ERASURE_RULE
 from segb_server.backend.services.people.erasure import ErasureService
 from segb_server.backend.services.people.export import STORY, PersonExport
 from segb_server.backend.services.people.places import forgetting
+from segb_server.backend.services.people.retention import Retention
 from segb_server.backend.services.reports.service import FOLDER as REPORTS_FOLDER
 from segb_server.backend.services.reports.service import ReportService
 from segb_server.backend.services.shared_context.policy import Policy
@@ -53,14 +54,19 @@ class Services:
     erasure: ErasureService
     people_export: PersonExport
     evidence: EvidenceService
+    retention: Retention | None = None  # with RETENTION_DAYS: erases what is past it, on schedule
     server_log: ServerLog | None = None  # the API's own log; None where nothing serves it (the CLI, the demo)
 
     def start(self) -> None:
         """Start the background work of a serving API: applying the journal, keeping the views current (or, when
         another process on this data directory does that, following it)."""
         self.writes.start()
+        if self.retention is not None:
+            self.retention.start()
 
     def close(self) -> None:
+        if self.retention is not None:
+            self.retention.stop()
         self.writes.close()
         self.graph.close()
         if self.reports.maintainer is not None:
@@ -127,4 +133,12 @@ def build_services(
             store, writes.journal, catalog.get(WINDOW), ServerKey.at(folder) if folder else ServerKey.in_memory()
         ),
         server_log=server_log,
+        retention=None
+        if settings.retention_days is None
+        else Retention(
+            erasure,
+            settings.retention_days,
+            settings.retention_check_seconds,
+            lambda: writes.apply_leadership.held,
+        ),
     )
