@@ -38,6 +38,11 @@ class ErasureAnswer(BaseModel):
         description="Texts left in the log that still contain the person's first name: a robot's reply or an "
         "activity's label, which the rule keeps (free text is not rewritten). Look for them with /sparql."
     )
+    seconds: dict[str, float] = Field(
+        description="How long each step took: found (the rule run on the store), journaled (the posts redacted and "
+        "the entry appended), applied (the store without the triples), forgotten (shared contexts, server log, "
+        "copies for SPARQL), viewed (the views built again), views_compacted, checked."
+    )
     views_rebuilt: bool = Field(
         description="Whether the reports' rows and the graph index were built again before answering; until they "
         "are, reports are evaluated by their queries and the graph answers 503."
@@ -72,6 +77,7 @@ def erase_human(body: ErasureRequest, services: ServicesDep, principal: Admin) -
         resources=done.resources,
         views_rebuilt=done.views_rebuilt,
         name_still_mentioned=done.name_still_mentioned,
+        seconds=done.seconds,
     )
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 import uuid
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -60,6 +61,7 @@ class ErasureResult:
     # Literals the rule keeps (a robot's reply, an activity's label) that still hold the person's first name:
     # free text is not rewritten, and whoever erases should know what remains.
     name_still_mentioned: int = 0
+    seconds: dict[str, float] = field(default_factory=dict)  # how long each step took (found, journaled, …)
 
 
 class ErasureService:
@@ -91,22 +93,26 @@ class ErasureService:
         """Erase `human` everywhere; 404 when neither the store nor the journal holds anything about them."""
         reason = _checked_reason(reason)
         with self._one_at_a_time:
+            clock = _Clock()
             self._caught_up()
             found = self.resources(human)
+            clock.lap("found")
             if human not in found:
                 found.append(human)  # the journal may still hold them (a post not applied, an older history)
             selection = touching(found)
             erasure = Erasure(str(uuid.uuid4()), actor, "human", reason, selection, withhold=True)
             done = self._journal(erasure, f"Nothing about <{human}> is held: nothing was erased.")
+            clock.lap("journaled")
             receipt = done.receipt
             forgotten = Forgotten(frozenset(found), frozenset(_texts(done.removed)))
             logger.warning(
                 "erasure log_id=%s actor=%s kind=human resources=%d triples=%d",
                 receipt.log_id, actor, len(found), receipt.triples_removed,
             )  # fmt: skip
-            rebuilt = self._forget(receipt, forgotten)
+            rebuilt = self._forget(receipt, forgotten, clock)
             mentions = self._mentions(_first_names(done.removed, human))
-            return ErasureResult(receipt, done.posts, len(found), rebuilt, mentions)
+            clock.lap("checked")
+            return ErasureResult(receipt, done.posts, len(found), rebuilt, mentions, clock.laps)
 
     def erase_before(self, cutoff: str, reason: str, actor: str) -> ErasureResult | None:
         """Retention: every post recorded before `cutoff` loses its content; None when none had any."""
@@ -117,9 +123,11 @@ class ErasureService:
             except NotFound:
                 return None
             receipt = done.receipt
+            clock = _Clock()
             logger.warning("erasure log_id=%s kind=retention before=%s triples=%d", receipt.log_id, cutoff,
                            receipt.triples_removed)  # fmt: skip
-            return ErasureResult(receipt, done.posts, 0, self._forget(receipt, Forgotten(before=cutoff)))
+            rebuilt = self._forget(receipt, Forgotten(before=cutoff), clock)
+            return ErasureResult(receipt, done.posts, 0, rebuilt, seconds=clock.laps)
 
     # --- steps ---------------------------------------------------------------------------------------
 
@@ -135,7 +143,7 @@ class ErasureService:
             raise NotFound(nothing)
         return done
 
-    def _forget(self, receipt: Receipt, forgotten: Forgotten) -> bool:
+    def _forget(self, receipt: Receipt, forgotten: Forgotten, clock: _Clock) -> bool:
         """Once the store applied the erasure, the other places forget too; True when the views were built again
         within the wait (otherwise the places that follow them forget once they are)."""
         self._apply()
@@ -143,11 +151,15 @@ class ErasureService:
             raise StoreUnavailable(
                 f"the erasure is recorded (log_id {receipt.log_id}) and the store will apply it when it answers"
             )
+        clock.lap("applied")
         for forget in self.forgetting.now:
             forget(forgotten)
+        clock.lap("forgotten")
         if self.writes.wait_viewed(receipt.sequence, self.views_timeout):
+            clock.lap("viewed")
             for forget in self.forgetting.after_views:
                 forget(forgotten)
+            clock.lap("views_compacted")
             return True
         threading.Thread(target=self._after_views, args=(receipt, forgotten), daemon=True).start()
         return False
@@ -171,6 +183,17 @@ class ErasureService:
             logger.info("erasure log_id=%s: the views are still being built", receipt.log_id)
         for forget in self.forgetting.after_views:
             forget(forgotten)
+
+
+class _Clock:
+    def __init__(self) -> None:
+        self.laps: dict[str, float] = {}
+        self._last = time.perf_counter()
+
+    def lap(self, name: str) -> None:
+        now = time.perf_counter()
+        self.laps[name] = round(now - self._last, 3)
+        self._last = now
 
 
 def _checked_reason(reason: str) -> str:
