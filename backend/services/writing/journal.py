@@ -153,8 +153,8 @@ class Journal:
         with self._lock:
             with self._storage_errors(), self._transaction() as connection:
                 epoch = self._epoch(connection)
-                if epoch != self._known_epoch:
-                    self._known, self._known_epoch = set(), epoch
+                if epoch != self._known_epoch:  # a clearing or an erasure (in any process) since the last post
+                    self._known, self._known_epoch, self._any_erased = set(), epoch, None
                 sequence, previous = self._head(connection)
                 outcomes: list[Receipt | BaseException] = []
                 held_back: list[set[bytes]] = []
@@ -203,6 +203,7 @@ class Journal:
                     return None
                 digests = [triple_digest(line[:-2].decode()) for line in redaction.removed]
                 forget_digests(connection, digests, erasure.withhold)
+                self._next_epoch(connection)  # every process's cache of held triples starts again
                 record = RedactionRecord(erasure.kind, erasure.reason, redaction.items)
                 receipt = _chained(erasure_receipt(erasure, record, sequence + 1, previous))
                 self._insert(connection, receipt, record.document())
@@ -219,12 +220,7 @@ class Journal:
         with self._transaction() as connection:
             removed = connection.execute("SELECT COUNT(*) FROM journal_triples").fetchone()[0]
             connection.execute("DELETE FROM journal_triples")
-            epoch = self._epoch(connection) + 1
-            connection.execute(
-                "INSERT INTO journal_state (name, value) VALUES ('epoch', ?) "
-                "ON CONFLICT (name) DO UPDATE SET value = excluded.value",
-                (epoch,),
-            )
+            epoch = self._next_epoch(connection)
             sequence, previous = self._head(connection)
             receipt = _chained(
                 Receipt(
@@ -418,6 +414,15 @@ class Journal:
         if self._any_erased is None:
             self._any_erased = connection.execute("SELECT 1 FROM erased_triples LIMIT 1").fetchone() is not None
         return self._any_erased
+
+    def _next_epoch(self, connection: Database) -> int:
+        epoch = self._epoch(connection) + 1
+        connection.execute(
+            "INSERT INTO journal_state (name, value) VALUES ('epoch', ?) "
+            "ON CONFLICT (name) DO UPDATE SET value = excluded.value",
+            (epoch,),
+        )
+        return epoch
 
     def _epoch(self, connection: Database) -> int:
         row = connection.execute("SELECT value FROM journal_state WHERE name = 'epoch'").fetchone()
