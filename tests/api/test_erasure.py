@@ -17,10 +17,11 @@ import httpx
 import pytest
 
 from segb_server.backend.api.app import create_app
-from tests.conftest import make_settings
+from tests.conftest import make_settings, virtuoso_store
 from tests.support.live_server import LiveServer
 from tests.support.people import INES_NAME, INES_SAYS, OTHERS_SAY, ROBOT_REPLIES, Visit, care_home
 from tests.support.settle import settle
+from tests.support.virtuoso import VirtuosoProcess
 
 HUMAN_REPORTS = ("participants", "conversations", "emotion-timeline")
 
@@ -79,7 +80,7 @@ def erased(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Erased]:
         yield Erased(server.url, data_dir, visit, before, answer.json(), republished)
 
 
-def texts_served(url: str, ines: str) -> Iterator[tuple[str, str]]:
+def texts_served(url: str, ines: str, visit: Visit) -> Iterator[tuple[str, str]]:
     """Every answer an auditor or an admin can get that could hold her: (what, body)."""
     get = lambda path, **params: httpx.get(f"{url}{path}", params=params, timeout=60)  # noqa: E731
     for fmt in ("turtle", "ntriples", "jsonld"):
@@ -92,6 +93,8 @@ def texts_served(url: str, ines: str) -> Iterator[tuple[str, str]]:
     yield "/graph search", get("/graph", q=INES_NAME).text
     # Asked about her IRI, the server names it back (the question); nothing more.
     yield "/resource", get("/resource", iri=ines).text.replace(ines, "")
+    for item in ("a1_said", "a1_reply", "a1_read", "t1_detect"):  # what stays of her visits, explained
+        yield f"/explain {item}", get("/explain", iri=str(visit.iris[item])).text
     yield "/sparql", httpx.post(f"{url}/sparql", data={"query": "SELECT * { ?s ?p ?o }"}).text
     yield "/sparql construct", httpx.post(f"{url}/sparql", data={"query": "CONSTRUCT WHERE { ?s ?p ?o }"}).text
     receipts = get("/ledger", limit=1000).json()["receipts"]
@@ -106,7 +109,7 @@ def texts_served(url: str, ines: str) -> Iterator[tuple[str, str]]:
 
 
 def test_nothing_served_holds_her_name_her_words_or_her_iri(erased: Erased) -> None:
-    served = list(texts_served(erased.url, erased.ines))
+    served = list(texts_served(erased.url, erased.ines, erased.visit))
     assert len(served) > 30
     found = [(what, needle) for what, body in served for needle in erased.needles() if needle in body]
     assert found == []
@@ -171,3 +174,32 @@ def test_erasing_asks_for_an_absolute_iri_and_a_reason_and_finds_someone(memory_
     missing = post({"iri": "https://example.org/h/nobody", "reason": "request 1"})
     assert (missing.status_code, missing.json()["error"]) == (404, "not_found")
     assert httpx.get(f"{memory_api.url}/ledger").json()["total"] == 0  # nothing was recorded
+
+
+@pytest.mark.virtuoso
+def test_an_erasure_on_virtuoso_removes_her_triples_in_their_received_spelling(
+    virtuoso: VirtuosoProcess, tmp_path: Path
+) -> None:
+    """Virtuoso reads each literal of DELETE DATA as it read it on INSERT DATA ("0.8"^^xsd:float included), so the
+    triples go; the journal, the reports and the re-publish behave as on the embedded store."""
+    store = virtuoso_store(virtuoso)
+    try:
+        with LiveServer(create_app(make_settings(store="virtuoso", data_dir=tmp_path), store=store)) as server:
+            visit = care_home()
+            visit.publish_steps(server.url)
+            before = human_rows(server.url, visit)
+            ines = str(visit.iris["ines"])
+            answer = httpx.post(f"{server.url}/humans/erase", json={"iri": ines, "reason": "request"}, timeout=120)
+            assert answer.status_code == 200, answer.text
+            settle(server.url)
+            stored = httpx.get(f"{server.url}/events", params={"format": "ntriples"}).text
+            assert [needle for needle in (INES_NAME, *INES_SAYS, ines) if needle in stored] == []
+            assert store.count() == len(httpx.get(f"{server.url}/events", params={"format": "ntriples",
+                                                                                  "form": "received"}).text.splitlines())
+            assert human_rows(server.url, visit) == before
+            assert all(answer["triples_withheld"] > 0 for answer in visit.publish(server.url))
+            verified = httpx.get(f"{server.url}/ledger/verify", params={"deep": "true"}).json()
+            assert verified["valid"] is True and verified["redactions"] == 1
+    finally:
+        store.clear()
+        store.close()

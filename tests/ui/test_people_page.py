@@ -45,6 +45,10 @@ def test_a_person_is_read_then_erased_after_a_typed_confirmation(ui_stack: UiSta
     receipt = httpx.get(f"{ui_stack.api_url}/ledger/{log_id}").json()
     assert receipt["receipt"]["action"] == "erase" and receipt["redaction"]["reason"].endswith("ticket 7")
     assert page.locator("#people tbody tr", has_text=ines).count() == 0
+    page.click("#erasure-receipt")
+    page.wait_for_load_state()
+    assert "with 1 erasure" in page.locator(".banner-success").inner_text()
+    assert page.locator(f"#receipt-{log_id} td").nth(6).inner_text().endswith("removed")
     # The one error is the wrong confirmation's answer (a 400 page).
     assert [error for error in page.console_errors if "400 (Bad Request)" not in error] == []
 
