@@ -194,8 +194,9 @@ def test_an_erasure_on_virtuoso_removes_her_triples_in_their_received_spelling(
             settle(server.url)
             stored = httpx.get(f"{server.url}/events", params={"format": "ntriples"}).text
             assert [needle for needle in (INES_NAME, *INES_SAYS, ines) if needle in stored] == []
-            assert store.count() == len(httpx.get(f"{server.url}/events", params={"format": "ntriples",
-                                                                                  "form": "received"}).text.splitlines())
+            assert store.count() == len(
+                httpx.get(f"{server.url}/events", params={"format": "ntriples", "form": "received"}).text.splitlines()
+            )
             assert human_rows(server.url, visit) == before
             assert all(answer["triples_withheld"] > 0 for answer in visit.publish(server.url))
             verified = httpx.get(f"{server.url}/ledger/verify", params={"deep": "true"}).json()
