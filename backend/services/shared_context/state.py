@@ -271,6 +271,14 @@ class ContextState:
         for iri in sorted(iris):
             for sql in _FORGET_BY_IRI:
                 removed += self._db.execute(sql, (iri,) * sql.count("?")).rowcount or 0
+        # A case's candidates are JSON: read as text here (a LIKE pattern would need the IRI escaped for each SQL).
+        naming = [
+            case_id
+            for case_id, candidates in self._db.execute("SELECT case_id, candidates FROM cases").fetchall()
+            if any(iri in str(candidates) for iri in iris)
+        ]
+        for case_id in naming:
+            removed += self._db.execute("DELETE FROM cases WHERE case_id = ?", (case_id,)).rowcount or 0
         for text in sorted(texts):
             for sql in _FORGET_BY_TEXT:
                 removed += self._db.execute(sql, (text,) * sql.count("?")).rowcount or 0
@@ -293,12 +301,12 @@ class ContextState:
         return {row[0] for row in rows}
 
 
-# Everything that can name a person or one of their shared events; a case's candidates are JSON, searched as text.
+# Everything that can name a person or one of their shared events (a case's candidates too, read in `forget`).
 _FORGET_BY_IRI = (
     "DELETE FROM observations WHERE subject = ? OR context_uri = ? OR observation_uri = ?",
     "DELETE FROM contexts WHERE subject = ? OR uri = ?",
     "DELETE FROM aliases WHERE source = ? OR target = ?",
-    "DELETE FROM cases WHERE source_uri = ? OR selected_uri = ? OR candidates LIKE '%' || ? || '%'",
+    "DELETE FROM cases WHERE source_uri = ? OR selected_uri = ?",
     "DELETE FROM rejected_pairs WHERE source = ? OR candidate = ?",
 )
 _FORGET_BY_TEXT = (
