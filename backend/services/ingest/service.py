@@ -164,7 +164,9 @@ class IngestService:
             self.writes.entries_written()
             return
         try:
-            self.writes.apply_now()
+            # Not waiting for another thread's step: a post then waits INGEST_APPLY_TIMEOUT_SECONDS at most.
+            self.writes.entries_written()
+            self.writes.apply_now(wait=False)
         except OUTAGES as error:
             raise NotYetApplied(
                 f"kept in the journal as log_id {receipt.log_id}, but it could not be applied yet ({error}); it is "

@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+import re
 import threading
 from collections import deque
 from collections.abc import Callable, Collection, Iterable, Iterator
@@ -30,6 +31,8 @@ LEVELS = ("DEBUG", "INFO", "WARNING", "ERROR", "CRITICAL")
 # Structured fields a record may carry (passed as `extra=` by the request logger and others).
 FIELDS = ("request_id", "user", "origin_ip", "method", "path", "status", "duration_ms", "triples_written", "log_id")
 REQUIRED = ("time", "level", "logger", "message")  # what every entry has; a line without them was not ours
+_REQUEST_ENTRY = '"logger": "segb.requests"'  # as `line_of` writes a request's entry
+_IRI = re.compile(r"https?(?::|%3A)[^\s\"'<>\\]+", re.IGNORECASE)
 RING_ENTRIES = 5000
 
 Entry = dict[str, Any]
@@ -188,11 +191,22 @@ class ServerLog:
         logging.getLogger(ROOT_LOGGER).removeHandler(self.handler)
         self.handler.close()
 
-    def forget(self, terms: Collection[str]) -> int:
-        """Remove every entry quoting one of `terms` (an erased person's IRIs and words, as written or as a URL
-        path writes them), from the file and its rotations; returns how many went."""
-        needles = {form for term in terms if term for form in (term, quote(term, safe=""), json.dumps(term)[1:-1])}
-        return self._drop(lambda line: any(needle in line for needle in needles))
+    def forget(self, iris: Collection[str], texts: Collection[str]) -> int:
+        """Remove every entry naming one of `iris` or quoting one of `texts` (an erased person's), from the file
+        and its rotations; returns how many went. A request's entry holds only the request's own facts (never a
+        query string, a body, or a person's IRI in its path) and is kept; the others, few, are read: the IRIs
+        they name (as written, or percent-encoded in a URL) looked up, the texts searched for."""
+        wanted = {form for iri in iris for form in (iri, quote(iri, safe=""))}
+        needles = [form for text in texts if text for form in {text, json.dumps(text)[1:-1]}]
+
+        def quotes(line: str) -> bool:
+            if _REQUEST_ENTRY in line:
+                return False
+            if any(found.rstrip(".,;)") in wanted for found in _IRI.findall(line)):
+                return True
+            return any(needle in line for needle in needles)
+
+        return self._drop(quotes)
 
     def forget_before(self, cutoff: str) -> int:
         """Remove every entry written before `cutoff` (ISO 8601 UTC): retention."""

@@ -34,7 +34,7 @@ def forgetting(
         if what.before is not None:
             server_log.forget_before(what.before)
         else:
-            server_log.forget(what.iris | what.texts)
+            server_log.forget(what.iris, what.texts)
 
     def views(_what: Forgotten) -> None:
         for path in view_files:

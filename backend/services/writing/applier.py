@@ -145,24 +145,28 @@ class Applier:
         """The entry the store is known to be applied through (0 until first read)."""
         return self.cursor.value
 
-    def apply_pending(self) -> int:
+    def apply_pending(self, *, wait: bool = True) -> int:
         """Apply every entry the journal holds beyond the store's cursor; returns the cursor. Raises
         StoreError when the store fails (nothing is lost: the next call resumes at the cursor). In a process
-        that does not lead, only reads how far the leader applied."""
+        that does not lead, only reads how far the leader applied. Without `wait`, returns at once when another
+        thread is applying (it applies what was appended meanwhile too, or the applier's thread does)."""
         if not self.leadership.try_acquire():
             return self._follow()
-        with self._apply_lock:
-            try:
-                self._read_cursor()
-                while entries := self.journal.entries_after(self.applied, ENTRIES_PER_READ):
-                    for step in self._steps(entries):
-                        self._apply(step)
-            except OUTAGES as error:
-                self._cursor_read = False  # the store may come back restored or wiped: read its cursor again
-                self.last_error = str(error)
-                raise
-            self.last_error = None
+        if not self._apply_lock.acquire(blocking=wait):
             return self.cursor.value
+        try:
+            self._read_cursor()
+            while entries := self.journal.entries_after(self.applied, ENTRIES_PER_READ):
+                for step in self._steps(entries):
+                    self._apply(step)
+        except OUTAGES as error:
+            self._cursor_read = False  # the store may come back restored or wiped: read its cursor again
+            self.last_error = str(error)
+            raise
+        finally:
+            self._apply_lock.release()
+        self.last_error = None
+        return self.cursor.value
 
     def wait_for(self, sequence: int, timeout: float) -> bool:
         """Wait until entry `sequence` is applied (True), or `timeout` seconds passed (False). A follower's
