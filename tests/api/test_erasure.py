@@ -7,6 +7,8 @@ back."""
 from __future__ import annotations
 
 import sqlite3
+import threading
+import time
 import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -204,3 +206,40 @@ def test_an_erasure_on_virtuoso_removes_her_triples_in_their_received_spelling(
     finally:
         store.clear()
         store.close()
+
+
+def test_a_post_during_an_erasure_is_answered_within_its_timeout_and_kept(tmp_path: Path) -> None:
+    """While the embedded store is written anew without her (seconds at 150,000 triples), a robot's post is not
+    held behind that step: it is journaled, answered within INGEST_APPLY_TIMEOUT_SECONDS (201, or 503 saying it is
+    kept), and in the store once the erasure is done."""
+    settings = make_settings(store="oxigraph", data_dir=tmp_path, ingest_apply_timeout_seconds=1)
+    with LiveServer(create_app(settings)) as server:
+        visit = care_home()
+        visit.publish_steps(server.url)
+        filler = "".join(
+            f'<https://example.org/filler/s{n}> <https://example.org/p> "value {n}" .\n' for n in range(150_000)
+        )
+        headers = {"Content-Type": "application/n-triples"}
+        # Applying it takes longer than the 1 s this server gives a post: a 503 saying it is kept, then applied.
+        assert httpx.post(f"{server.url}/ttl", content=filler, headers=headers, timeout=300).status_code in (201, 503)
+        settle(server.url)
+        erasing = threading.Thread(
+            target=httpx.post,
+            args=(f"{server.url}/humans/erase",),
+            kwargs={"json": {"iri": str(visit.iris["ines"]), "reason": "request"}, "timeout": 300},
+        )
+        erasing.start()
+        deadline = time.monotonic() + 60
+        while httpx.get(f"{server.url}/ledger", params={"limit": 1}).json()["receipts"][0]["action"] != "erase":
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        began = time.monotonic()
+        late = httpx.post(f"{server.url}/ttl", content=b'<https://example.org/late> <https://example.org/p> "x" .\n',
+                          headers=headers, timeout=60)  # fmt: skip
+        waited = time.monotonic() - began
+        erasing.join(timeout=300)
+        assert late.status_code in (201, 503) and waited < 5, (late.status_code, waited)
+        if late.status_code == 503:
+            assert "kept in the journal" in late.json()["detail"]
+        settle(server.url)
+        assert "https://example.org/late" in httpx.get(f"{server.url}/events", params={"format": "ntriples"}).text
