@@ -386,4 +386,15 @@ def write_report(f: Figures, path: Path) -> None:
         "",
         *(line for note in getattr(f, "added_runs", []) for line in (note, "")),
     ]
-    path.write_text("\n".join(header + _sections(f)) + "\n", encoding="utf-8")
+    path.write_text("\n".join(header + _sections(f)) + "\n" + _own_commands(path), encoding="utf-8")
+
+
+OWN_COMMANDS = "## Measured by their own commands"
+
+
+def _own_commands(path: Path) -> str:
+    """The page's last part, written from benches that run on their own (`python -m bench.people`): kept as it
+    is when the sections above are written again."""
+    text = path.read_text(encoding="utf-8") if path.exists() else ""
+    start = text.find("\n" + OWN_COMMANDS + "\n")
+    return "" if start < 0 else text[start:]
