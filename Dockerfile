@@ -1,4 +1,3 @@
-# syntax=docker/dockerfile:1
 # One image for the SEGB API and UI (compose runs it twice with different commands).
 # Both stages use the same base, so the virtual environment built in the first runs unchanged in the second.
 ARG PYTHON_IMAGE=python:3.11-slim
@@ -6,7 +5,7 @@ ARG PYTHON_IMAGE=python:3.11-slim
 FROM ${PYTHON_IMAGE} AS build
 ENV PIP_NO_CACHE_DIR=1 PIP_DISABLE_PIP_VERSION_CHECK=1
 WORKDIR /src
-# Dependencies first (pinned with hashes), so code changes do not reinstall them.
+# Dependencies and build tools first (pinned with hashes), so code changes do not reinstall them.
 COPY requirements.lock ./
 RUN python -m venv /venv && /venv/bin/pip install --require-hashes -r requirements.lock
 COPY pyproject.toml setup.py README.md ./
@@ -14,7 +13,9 @@ COPY backend backend
 COPY ui ui
 COPY examples examples
 COPY sparql sparql
-RUN /venv/bin/pip install --no-deps .
+COPY rules rules
+# The build tools come from the lock too (setuptools): no build isolation, nothing downloaded.
+RUN /venv/bin/pip install --no-deps --no-build-isolation --no-index .
 
 FROM ${PYTHON_IMAGE}
 RUN useradd --create-home --uid 10001 segb && mkdir /data && chown segb /data

@@ -1,4 +1,4 @@
-"""The `segb` command: serve the API and UI, import and export RDF.
+"""The `segb` command: serve the API and UI, import and export RDF, check a log against the audit rules.
 
 Settings come from, highest first: command-line flags, environment variables, a `.env` file, defaults.
 """
@@ -126,6 +126,21 @@ def _parser() -> argparse.ArgumentParser:
     commands.choices["evidence-key"].set_defaults(handler=lambda args: cli_evidence.evidence_key(args, _settings(args)))
     commands.choices["verify-evidence"].set_defaults(handler=cli_evidence.verify_evidence)
 
+    check = commands.add_parser(
+        "check", help="run the audit rules on a log file, offline (exit code 1 when a rule finds a violation)"
+    )
+    check.add_argument("file", type=Path, metavar="LOG", help="a Turtle (.ttl) or N-Triples (.nt) file")
+    check.add_argument("--rules", type=Path, help="folder of rules (RULES_DIR; default the shipped rules)")
+    check.add_argument("--format", choices=["text", "json", "junit"], default="text", help="output (default text)")
+    check.set_defaults(handler=_check)
+
+    upkeep = commands.add_parser(
+        "upkeep", help="tell how a report's rows are kept current as robots write (or why it is evaluated in full)"
+    )
+    upkeep.add_argument("report", nargs="?", help="a report's name, e.g. conversations (default: every report)")
+    upkeep.add_argument("--sparql-dir", type=Path, help="directory of the .rq files (SPARQL_DIR)")
+    upkeep.set_defaults(handler=_upkeep)
+
     demo = commands.add_parser("demo", help="publish the demo dataset (robots ARI and TIAGo) to a running server")
     demo.add_argument("--server", help="API base URL (default http://127.0.0.1:<API_PORT>)")
     demo.add_argument("--token", help="bearer token with the logger role, when the server has SECRET_KEY set")
@@ -164,23 +179,28 @@ def _serve(args: argparse.Namespace) -> int:
     names = ("host", "api_port", "ui_port", "backend_url", "api_workers")
     settings = _settings(args, *names)
     from segb_server.backend.serving import (
+        DataDirUnwritable,
         WorkersRefused,
+        check_data_dir,
         check_shareable,
         configure_logging,
         hand_down,
         serve,
         serve_api_workers,
+        warn_when_open,
     )
 
     configure_logging(settings)
 
     if args.demo and args.only == "ui":
         return _fail("--demo fills the API's store: drop --only ui")
-    if args.only in (None, "api"):
-        _check_catalog(settings)
     try:
+        if args.only in (None, "api"):
+            _check_catalog(settings)
+            check_data_dir(settings)
+            warn_when_open(settings)
         check_shareable(settings, demo=args.demo)
-    except WorkersRefused as refused:
+    except (WorkersRefused, DataDirUnwritable) as refused:
         return _fail(str(refused))
     if args.only in (None, "api"):
         print(f"SEGB API  http://{settings.host}:{settings.api_port}/docs", file=sys.stderr)
@@ -219,6 +239,35 @@ def _import(args: argparse.Namespace) -> int:
     return 0
 
 
+def _check(args: argparse.Namespace) -> int:
+    """Findings of every rule on one file, in an in-memory store: the robot's own CI runs it before deploying."""
+    from pyoxigraph import RdfFormat
+
+    from segb_server.backend.services.ingest.parsing import parse_quads
+    from segb_server.backend.services.rules import check_output
+    from segb_server.backend.services.rules.catalog import RuleCatalog
+    from segb_server.backend.services.rules.offline import check_quads
+
+    settings = Settings(**({"rules_dir": args.rules} if args.rules is not None else {}))
+    if not args.file.is_file():
+        return _fail(f"no such file: {args.file}")
+    if args.rules is not None and not args.rules.is_dir():
+        return _fail(f"no such folder of rules: {args.rules}")
+    catalog = RuleCatalog(settings.rules_dir)
+    data = args.file.read_bytes()
+    rdf_format = RdfFormat.N_TRIPLES if args.file.suffix == ".nt" else RdfFormat.TURTLE
+    quads = parse_quads(data, rdf_format, max_triples=settings.max_triples_per_post)
+    report = check_quads(catalog, quads, data.decode("utf-8", errors="replace"))
+    name = str(args.file)
+    if args.format == "json":
+        sys.stdout.write(check_output.as_json(report, name))
+    elif args.format == "junit":
+        sys.stdout.write(check_output.as_junit(report, name, catalog))
+    else:
+        sys.stdout.write(check_output.as_text(report, name))
+    return 1 if report.violations else 0
+
+
 def _rebuild(args: argparse.Namespace) -> int:
     settings = _settings(args)
     with _services(settings) as services:
@@ -236,6 +285,22 @@ def _rebuild(args: argparse.Namespace) -> int:
         writes.apply_now()
         applied = writes.applied
         print(f"{store.kind} store rebuilt from the journal through entry {applied}: {store.count()} triples")
+    return 0
+
+
+def _upkeep(args: argparse.Namespace) -> int:
+    from segb_server.backend.services.reports.service import FOLDER
+    from segb_server.backend.services.sparql.catalog import Catalog
+    from segb_server.backend.services.upkeep.kept_queries.describe import describe
+
+    catalog = Catalog(_settings(args, "sparql_dir").sparql_dir)
+    reports = catalog.under(FOLDER)
+    if args.report is not None:
+        reports = [query for query in reports if query.name == f"{FOLDER}/{args.report}"]
+        if not reports:
+            names = ", ".join(query.name.removeprefix(f"{FOLDER}/") for query in catalog.under(FOLDER))
+            return _fail(f"no report named {args.report!r}; reports: {names}")
+    print("\n\n".join("\n".join(describe(query)) for query in reports))
     return 0
 
 

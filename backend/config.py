@@ -170,6 +170,9 @@ class Settings(BaseSettings):
     # --- operations --------------------------------------------------------------------------------------
     log_level: str = Field("INFO", validation_alias="LOGGING_LEVEL", description="Log level (LOGGING_LEVEL).")
     sparql_dir: Path = Field(PACKAGE_ROOT / "sparql", description="Directory of the .rq query files.")
+    rules_dir: Path = Field(
+        PACKAGE_ROOT / "rules", description="Directory of the audit rules (.rq SPARQL rules, .ttl SHACL shapes)."
+    )
     server_log_file: str = Field(
         "", description="JSON-lines server log; empty = DATA_DIR/logs/server.jsonl (in memory with STORE=memory)."
     )

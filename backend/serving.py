@@ -12,10 +12,13 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import errno
+import ipaddress
 import logging
 import multiprocessing
 import os
 import signal
+import tempfile
 from collections.abc import Iterator, Mapping
 from typing import TYPE_CHECKING, Any
 
@@ -25,6 +28,8 @@ from segb_server.backend.config import Settings
 
 if TYPE_CHECKING:
     from fastapi import FastAPI
+
+logger = logging.getLogger("segb.serve")
 
 APP_FACTORY = "segb_server.backend.serving:worker_app"
 SHARED_STORES = ("virtuoso", "sparql")
@@ -60,6 +65,59 @@ def check_shareable(settings: Settings, *, demo: bool) -> None:
         )
     if settings.api_workers > 1 and demo:
         raise WorkersRefused("--demo loads the demo in one process: run one worker, or `segb demo` once it is up")
+
+
+def listens_beyond_this_machine(host: str) -> bool:
+    """Whether HOST lets other machines connect: anything but a loopback address or `localhost`."""
+    if host == "localhost":
+        return False
+    try:
+        return not ipaddress.ip_address(host).is_loopback
+    except ValueError:  # a host name: it names some interface
+        return True
+
+
+def warn_when_open(settings: Settings) -> None:
+    """Say loudly that an API without authentication listens where other machines may reach it."""
+    if settings.auth_enabled or not listens_beyond_this_machine(settings.host):
+        return
+    logger.warning(
+        "AUTHENTICATION IS OFF (SECRET_KEY is empty) and the API listens on %s: anyone who can reach port %d can "
+        "publish, read and delete every log. Set SECRET_KEY (32+ random characters) to require tokens, or listen "
+        "on 127.0.0.1 (HOST). With docker compose, PUBLISH_ADDRESS (127.0.0.1 unless changed) decides which "
+        "machines reach the published port.",
+        settings.host,
+        settings.api_port,
+    )
+
+
+class DataDirUnwritable(ValueError):
+    """The server cannot write its files in DATA_DIR."""
+
+
+def check_data_dir(settings: Settings) -> None:
+    """Fail with what to do, before serving, when DATA_DIR cannot be written (a root-owned folder mounted on a
+    container's /data, whose server runs as an unprivileged user)."""
+    if settings.store == "memory":
+        return  # nothing is kept on disk
+    folder = settings.data_dir
+    places = (folder, folder / "logs")  # the server log is the first file written
+    try:
+        places[-1].mkdir(parents=True, exist_ok=True)
+        for place in places:
+            with tempfile.TemporaryFile(dir=place):
+                pass
+        # Files left by another user (an image that ran as root) are refused when opened, later: say so now.
+        for path in (path for place in places for path in place.iterdir()):
+            if not os.access(path, os.W_OK):
+                raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), str(path))
+    except OSError as error:
+        uid, gid = os.geteuid(), os.getegid()
+        raise DataDirUnwritable(
+            f"DATA_DIR {folder} is not writable by this server's user, uid {uid} ({error.strerror}: "
+            f"{error.filename}): give the folder to that user: `sudo chown -R {uid}:{gid} {folder}` (for a host "
+            f"folder mounted on {folder} in a container, run it on the host folder)"
+        ) from error
 
 
 def hand_down(overrides: Mapping[str, object]) -> None:

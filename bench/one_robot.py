@@ -1,11 +1,8 @@
-"""One robot that runs for months: every post is one visit to the same robot node, so its history never stops
-growing. The payloads are what the PyPI client `semantic-log-generator` emits for one visit, made once by the
-client itself and numbered for each post (a format string), so a bench client can send hundreds of them a
-second without spending its own CPU on rdflib.
-
-One visit (about 57 triples): a new visitor, the shared event of what they said, the robot's listening
-activity and the visitor's message, the robot's reply activity and its message. No robot state and no
-emotion: the posts that only add children to the robot's hub are the ones whose upkeep must not grow with it.
+"""One robot that runs for months (examples/receptionist.py): every post is one visit to the same robot node, so
+its history never stops growing. The payloads are what the PyPI client `semantic-log-generator` emits for one
+visit, made once by the client itself and numbered for each post (a format string), so a bench client can send
+hundreds of them a second without spending its own CPU on rdflib. The posts only add children to the robot's
+hub: the ones whose upkeep must not grow with it.
 """
 
 from __future__ import annotations
@@ -15,19 +12,15 @@ from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
 
 from rdflib import Graph
-from semantic_log_generator import ActivityKind, SemanticSEGBLogger
 
 from bench.workloads import RecordingGraph
+from segb_server.examples.receptionist import log_visit, receptionist
 
-ROBOT_ID = "ari"
-NAMESPACE = f"https://example.org/segb/robots/{ROBOT_ID}/v1/"
 T0 = datetime(2026, 1, 5, 8, 0, tzinfo=UTC)
 SECONDS_PER_VISIT = 7  # visits are this far apart in the log's own time
 # The numbers made for one visit, replaced by each post's own: a marker index and a marker time.
 MARKER = 987654321
 MARKER_TIME = datetime(2031, 7, 9, 10, 11, 12, tzinfo=UTC)
-INITIAL_MESSAGE = "http://kb.openrobots.org#InitialMessage"
-RESPONSE_MESSAGE = "http://kb.openrobots.org#ResponseMessage"
 
 
 @dataclass(frozen=True)
@@ -50,45 +43,16 @@ class OneRobot:
 
 def one_robot() -> OneRobot:
     """The first post and the visit template, made by the real client."""
-    logger = SemanticSEGBLogger(
-        base_namespace=NAMESPACE, robot_id=ROBOT_ID, robot_name="ARI", compact_resource_ids=True,
-        namespace_prefix=ROBOT_ID,
-    )  # fmt: skip
+    logger = receptionist()
     recording = RecordingGraph()
     for prefix, namespace in logger.graph.namespaces():
         recording.bind(prefix, namespace, override=True)
     for triple in logger.graph:
         recording.add(triple)
     logger.graph = recording
-    logger.register_ml_model("dialogue", label="Dialogue LLM", version="3.2", provider="Ollama")
     first = _ntriples(recording.take())
-    _log_visit(logger, MARKER, MARKER_TIME)
+    log_visit(logger, MARKER, MARKER_TIME)
     return OneRobot(first, _template(_ntriples(recording.take())))
-
-
-def _log_visit(logger: SemanticSEGBLogger, index: int, at: datetime) -> None:
-    visitor = logger.register_human(f"visitor_{index}", first_name=f"Visitor {index}")
-    text = f"Hello ARI, this is visit {index}."
-    event = logger.get_shared_event_uri(
-        event_kind="human_utterance", observed_at=at, subject=visitor, text=text, modality="speech"
-    )
-    listening = logger.log_activity(
-        activity_id=f"listen_{index}", activity_kind=ActivityKind.LISTENING, label="Listen to the visitor",
-        related_shared_events=[event], started_at=at, ended_at=at + timedelta(seconds=1),
-    )  # fmt: skip
-    heard = logger.log_message(
-        text, message_id=f"user_{index}", language="en", message_types=[INITIAL_MESSAGE],
-        generated_by_activity=listening, sender=visitor,
-    )  # fmt: skip
-    response = logger.log_activity(
-        activity_id=f"respond_{index}", activity_kind=ActivityKind.RESPONSE, label="Reply to the visitor",
-        related_shared_events=[event], started_at=at + timedelta(seconds=2), ended_at=at + timedelta(seconds=3),
-        triggered_by_entity=heard,
-    )  # fmt: skip
-    logger.log_message(
-        f"Welcome, visitor {index}!", message_id=f"robot_{index}", language="en", message_types=[RESPONSE_MESSAGE],
-        generated_by_activity=response, previous_message=heard, sender=logger.robot_uri,
-    )  # fmt: skip
 
 
 def _ntriples(triples: list[tuple]) -> str:  # type: ignore[type-arg]

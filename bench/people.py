@@ -145,7 +145,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f"| triples removed | {erasure['triples_removed']:,} from {erasure['receipts_redacted']} posts |")
     print(f"| views rebuilt before the answer | {erasure['views_rebuilt']} (then settled in {views:.1f} s) |")
     ok = [value for value, status in zip(latencies, statuses, strict=True) if status == 201]
-    others = ", ".join(f"{statuses.count(code)} answered {code or 'no answer'}" for code in sorted(set(statuses) - {201}))
+    others = ", ".join(
+        f"{statuses.count(code)} answered {code or 'no answer'}" for code in sorted(set(statuses) - {201})
+    )
     print(f"| posts meanwhile (one every 0.1 s) | {len(statuses)}: {statuses.count(201)} answered 201"
           f"{', ' + others if others else ''} |")  # fmt: skip
     if ok:

@@ -41,6 +41,11 @@ def pytest_configure(config: pytest.Config) -> None:
     config.stash[_GUARD] = (real_home, take(ROOT, real_home))
 
 
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """The container tier runs after everything else: it takes minutes, and the rest reports first."""
+    items.sort(key=lambda item: item.get_closest_marker("containers") is not None)  # stable: order kept within
+
+
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
     if os.environ.get("SEGB_WRITE_GUARD") == "0":  # while other work edits the tree during a run (never in CI)
         return

@@ -14,12 +14,14 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from segb_server.backend.config import Settings
 from segb_server.ui.api_client import BackendClient, BackendError, BackendUnavailable
+from segb_server.ui.badges import BadgeCache, BadgeMiddleware
 from segb_server.ui.csrf import CsrfCookieMiddleware, CsrfRejected
 from segb_server.ui.forms import BadForm
 from segb_server.ui.pages import error_page
 from segb_server.ui.routes import (
     clear,
     export,
+    findings,
     graph,
     health,
     home,
@@ -42,6 +44,7 @@ ROUTERS = [
     home.router,
     health.router,
     reports.router,
+    findings.router,
     graph.router,
     session.router,
     ledger.router,
@@ -63,6 +66,7 @@ def create_ui_app(settings: Settings | None = None) -> FastAPI:
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         app.state.backend = BackendClient(settings.effective_backend_url)
         app.state.viewers = ViewerCache()
+        app.state.badges = BadgeCache()
         try:
             yield
         finally:
@@ -70,6 +74,7 @@ def create_ui_app(settings: Settings | None = None) -> FastAPI:
 
     app = FastAPI(title="SEGB UI", lifespan=lifespan, docs_url=None, redoc_url=None, openapi_url=None)
     app.add_middleware(CsrfCookieMiddleware)
+    app.add_middleware(BadgeMiddleware)  # inside the viewer's: it reads what the viewer may see
     app.add_middleware(ViewerMiddleware)
     app.add_middleware(SecurityHeaders)
     app.mount("/static", StaticFiles(directory=Path(__file__).parent / "static"), name="static")

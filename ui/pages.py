@@ -22,6 +22,7 @@ ADMIN = ("admin",)
 # (label, path, roles that can use the page; None = public). Pages a viewer cannot use are not shown.
 NAVIGATION: list[tuple[str, str, tuple[str, ...] | None]] = [
     ("Reports", "/reports", AUDITOR),
+    ("Findings", "/findings", AUDITOR),
     ("Graph", "/kg-graph", AUDITOR),
     ("Query", "/query", AUDITOR),
     ("Shared context", "/shared-context", ADMIN),
@@ -55,6 +56,7 @@ def render(
     page = {
         "navigation": [(label, path) for label, path, roles in NAVIGATION if who.can(roles)],
         "current_nav": current_nav(request.url.path),
+        "badges": getattr(request.state, "badges", {}),
         "viewer": who,
         "csrf_token": csrf_token(request),
         **(context or {}),

@@ -20,11 +20,16 @@ from segb_server.backend.services.people.places import forgetting
 from segb_server.backend.services.people.retention import Retention
 from segb_server.backend.services.reports.service import FOLDER as REPORTS_FOLDER
 from segb_server.backend.services.reports.service import ReportService
+from segb_server.backend.services.rules.catalog import RuleCatalog
+from segb_server.backend.services.rules.service import FindingsService
+from segb_server.backend.services.rules.shape_view import ShapeFindings
+from segb_server.backend.services.rules.shapes import ShapeRule
 from segb_server.backend.services.shared_context.policy import Policy
 from segb_server.backend.services.shared_context.service import SharedContextService
 from segb_server.backend.services.shared_context.state import STATE_FILE
 from segb_server.backend.services.sparql.catalog import Catalog
 from segb_server.backend.services.sparql.runner import QueryRunner, query_runner
+from segb_server.backend.services.upkeep.keeper import KeptView
 from segb_server.backend.services.upkeep.kept_queries.projection import KeptQueries
 from segb_server.backend.services.upkeep.kept_queries.rows import KeptRows
 from segb_server.backend.services.writing.write_path import WritePath
@@ -37,6 +42,8 @@ REQUIRED_QUERIES = ("reports/", "graph/resource-in", "graph/resource-out", ERASU
 OWNED_STORES = {"oxigraph", "memory"}
 REPORTS_FILE = "reports.sqlite3"  # the reports' rows, kept current; rebuilt from the store when missing
 GRAPH_FILE = "graph.sqlite3"  # the graph index, likewise
+FINDINGS_FILE = "findings.sqlite3"  # the SPARQL rules' findings, kept as the reports' rows are
+SHAPE_FINDINGS_FILE = "shape-findings.sqlite3"  # the SHACL rules' findings
 
 
 @dataclass
@@ -47,6 +54,7 @@ class Services:
     writes: WritePath  # journal → store → views, and which process does what
     ingest: IngestService
     reports: ReportService
+    findings: FindingsService
     graph: GraphService
     explain: ExplainService
     shared_context: SharedContextService
@@ -71,6 +79,10 @@ class Services:
         self.graph.close()
         if self.reports.maintainer is not None:
             self.reports.maintainer.rows.close()
+        if self.findings.kept is not None:
+            self.findings.kept.rows.close()
+        if self.findings.shapes is not None:
+            self.findings.shapes.close()
         self.queries.close()
         self.shared_context.close()
 
@@ -83,10 +95,26 @@ def build_services(
     folder = None if settings.store == "memory" else settings.data_dir  # views of a memory store: temporary files
     kept_reports = KeptQueries(store, KeptRows(folder and folder / REPORTS_FILE))
     index = GraphIndex(store, folder and folder / GRAPH_FILE, detail_literals=TOLD_LITERALS)
+    rules = RuleCatalog(settings.rules_dir)
+    shape_rules = {rule.id: ShapeRule(rule) for rule in rules.shapes()}
+    kept_findings = KeptQueries(store, KeptRows(folder and folder / FINDINGS_FILE))
+    shape_findings = None
     if settings.keep_views:
+        shape_findings = ShapeFindings(
+            store, list(shape_rules.values()), folder and folder / SHAPE_FINDINGS_FILE, kept_findings.rows.changed
+        )
         for query in catalog.under(REPORTS_FOLDER):
             kept_reports.add(query)
-        writes = WritePath.open(settings, store, [*kept_reports.views(), index], kept_reports.drop_unkept)
+        for rule in rules.sparql():
+            assert rule.query is not None
+            kept_findings.add(rule.query)
+
+        def housekeeping() -> None:
+            kept_reports.drop_unkept()
+            kept_findings.drop_unkept()
+
+        views: list[KeptView] = [*kept_reports.views(), index, *kept_findings.views(), shape_findings]
+        writes = WritePath.open(settings, store, views, housekeeping)
     else:  # nothing kept; the rows kept before stay as they are for when views are on again
         writes = WritePath.open(settings, store, [])
     version = DataVersion()
@@ -106,7 +134,9 @@ def build_services(
         max_memory_bytes=settings.sparql_max_memory_bytes,
         snapshots=folder and folder / "snapshots",
     )
-    view_files = [folder / REPORTS_FILE, folder / GRAPH_FILE] if folder else []
+    view_files = (
+        [folder / name for name in (REPORTS_FILE, GRAPH_FILE, FINDINGS_FILE, SHAPE_FINDINGS_FILE)] if folder else []
+    )
     places = forgetting(writes.journal, shared_context, queries, server_log, view_files)
     erasure = ErasureService(store, catalog.get(ERASURE_RULE), writes, places)
     return Services(
@@ -122,7 +152,14 @@ def build_services(
             apply_timeout=settings.ingest_apply_timeout_seconds,
             max_backlog=settings.journal_max_backlog,
         ),
-        reports=ReportService(catalog, store, cache, kept_reports),
+        reports=ReportService(catalog, store, cache, kept_reports, lag=writes.lag),
+        findings=FindingsService(
+            rules,
+            store,
+            kept_findings if settings.keep_views else None,
+            shape_findings,
+            shape_rules,
+        ),
         graph=graph,
         explain=ExplainService(graph),
         shared_context=shared_context,

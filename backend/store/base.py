@@ -30,6 +30,10 @@ class StoreUnavailable(StoreError):
     """The store does not answer (down, unreachable, timing out)."""
 
 
+class StoreCredentialsRefused(StoreError):
+    """The store refused the server's user or password: a setting to correct, not an outage that passes."""
+
+
 class StoreRejectedQuery(StoreError):
     """The store refused a query as invalid; the message says why."""
 

@@ -18,6 +18,7 @@ from segb_server.backend.store.base import (
     Quad,
     QueryResult,
     QueryTimeout,
+    StoreCredentialsRefused,
     StoreError,
     StoreRejectedQuery,
     StoreUnavailable,
@@ -75,8 +76,14 @@ class SparqlHttpStore:
             )
         except httpx.HTTPError as error:
             raise StoreUnavailable(f"{self.kind} does not answer: {error}") from error
+        if response.status_code in (401, 403):
+            raise StoreCredentialsRefused(self._credentials_refused(response.status_code))
         if response.status_code != 200:
             raise StoreUnavailable(f"{self.kind} answered HTTP {response.status_code} to a ping")
+
+    def _credentials_refused(self, status: int) -> str:
+        """What to tell the operator when the store answers 401 or 403 (subclasses name their settings)."""
+        return f"{self.kind} refused the server's credentials (HTTP {status}): check SPARQL_USER and SPARQL_PASSWORD"
 
     # --- writes --------------------------------------------------------------------------------------
 
@@ -253,7 +260,7 @@ class SparqlHttpStore:
         if response.status_code == 400 or self._refuses_the_query(text):
             raise StoreRejectedQuery(text)
         if response.status_code in (401, 403):
-            raise StoreError(f"{self.kind} refused the server's credentials (HTTP {response.status_code})")
+            raise StoreCredentialsRefused(self._credentials_refused(response.status_code))
         raise StoreError(f"{self.kind} answered HTTP {response.status_code}: {text}")
 
     def _summary(self, text: str) -> str:

@@ -31,6 +31,7 @@ class VirtuosoStore(SparqlHttpStore):
         timeout_seconds: float = 30.0,
         ping_timeout_seconds: float = 1.0,
     ) -> None:
+        self.user = user
         super().__init__(
             query_endpoint=endpoint,
             update_endpoint=endpoint,
@@ -38,6 +39,17 @@ class VirtuosoStore(SparqlHttpStore):
             auth=httpx.DigestAuth(user, password),
             timeout_seconds=timeout_seconds,
             ping_timeout_seconds=ping_timeout_seconds,
+        )
+
+    def _credentials_refused(self, status: int) -> str:
+        if status != 401:
+            return f"Virtuoso refused user {self.user} (HTTP {status}): it needs the SPARQL_UPDATE role"
+        return (
+            f"Virtuoso refused the password of user {self.user} (HTTP 401): VIRTUOSO_PASSWORD is not that "
+            "account's password. Virtuoso keeps the password its database was created with (in docker compose: "
+            "when the virtuoso-data volume was created), so changing VIRTUOSO_PASSWORD later does not change it. "
+            f"Set VIRTUOSO_PASSWORD back to that password, or change it in Virtuoso "
+            f"(isql: user_set_password('{self.user}', '<new password>'))"
         )
 
     def _timeout_params(self, timeout: float) -> dict[str, str]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -10,8 +11,10 @@ import time
 from pathlib import Path
 
 import httpx
+import pytest
 from pyoxigraph import RdfFormat
 
+from segb_server.backend.serving import listens_beyond_this_machine
 from tests.conftest import FIXTURES
 from tests.support.graphs import value_triples
 from tests.support.net import free_port
@@ -84,6 +87,60 @@ def test_serve_runs_api_and_ui_and_stops_on_sigterm(tmp_path: Path) -> None:
         output, _ = process.communicate(timeout=30)
     assert process.returncode == 0, output
     assert (tmp_path / "oxigraph").is_dir()
+    assert "AUTHENTICATION IS OFF" not in output  # on 127.0.0.1 only, the default
+
+
+@pytest.mark.parametrize(
+    ("host", "beyond"),
+    [("127.0.0.1", False), ("127.0.0.2", False), ("::1", False), ("localhost", False),
+     ("0.0.0.0", True), ("::", True), ("192.0.2.7", True), ("robots.example", True)],
+)  # fmt: skip
+def test_only_loopback_hosts_keep_the_server_to_this_machine(host: str, beyond: bool) -> None:
+    assert listens_beyond_this_machine(host) is beyond
+
+
+def test_serve_without_auth_on_every_interface_warns_loudly(tmp_path: Path) -> None:
+    port = free_port()
+    process = subprocess.Popen(
+        [*SEGB, "serve", "--only", "api", "--store", "memory", "--host", "0.0.0.0", "--api-port", str(port)],
+        env=clean_env(),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    try:
+        assert wait_for(f"http://127.0.0.1:{port}/healthz/ready").status_code == 200
+    finally:
+        process.send_signal(signal.SIGTERM)
+        output, _ = process.communicate(timeout=30)
+    [warning] = [line for line in output.splitlines() if "AUTHENTICATION IS OFF" in line]
+    assert "WARNING segb.serve: AUTHENTICATION IS OFF (SECRET_KEY is empty) and the API listens on 0.0.0.0" in warning
+    assert f"anyone who can reach port {port} can publish, read and delete every log" in warning
+    assert "Set SECRET_KEY" in warning and "PUBLISH_ADDRESS" in warning
+
+
+def test_serve_says_how_to_make_an_unwritable_data_dir_writable(tmp_path: Path) -> None:
+    """A folder the server's user cannot write (a root-owned host folder on a container's /data): one line
+    saying which folder, which user and the command that fixes it, and no traceback."""
+    data = tmp_path / "data"
+    data.mkdir()
+    data.chmod(0o555)
+    # As root, without the capability that lets root write anywhere, as the image's user would be refused.
+    unprivileged = ["setpriv", "--bounding-set=-dac_override,-dac_read_search"] if os.geteuid() == 0 else []
+    result = subprocess.run(
+        [*unprivileged, *SEGB, "serve", "--only", "api", "--data-dir", str(data)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=clean_env(),
+    )
+    assert result.returncode == 2, result.stderr
+    uid, gid = os.geteuid(), os.getegid()
+    assert result.stderr.splitlines() == [
+        f"segb: error: DATA_DIR {data} is not writable by this server's user, uid {uid} (Permission denied: "
+        f"{data / 'logs'}): give the folder to that user: `sudo chown -R {uid}:{gid} {data}` (for a host folder "
+        f"mounted on {data} in a container, run it on the host folder)"
+    ]
 
 
 def test_flags_override_environment_and_bad_settings_fail_fast(tmp_path: Path) -> None:
@@ -125,3 +182,43 @@ def wait_for(url: str, timeout: float = 30) -> httpx.Response:
             if time.monotonic() > deadline:
                 raise
             time.sleep(0.1)
+
+
+def test_check_prints_each_finding_with_its_line_and_fails_on_violations(tmp_path: Path) -> None:
+    from tests.support.rule_scenarios import troubled
+
+    scenario, expected = troubled()
+    scenario.run_steps()
+    log = tmp_path / "ari.ttl"
+    log.write_text(scenario.published_turtle()[0], encoding="utf-8")
+    result = subprocess.run([*SEGB, "check", str(log)], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 1, result.stderr
+    printed = result.stdout.splitlines()
+    assert printed[-1].endswith("3 violations, 6 warnings, 2 infos")
+    assert any(line.startswith(f"{log}:") and ": violation: [time-not-datetime]" in line for line in printed)
+    assert len(printed) - 1 == sum(len(nodes) for nodes in expected.values())
+    as_json = json.loads(subprocess.run([*SEGB, "check", str(log), "--format", "json"], capture_output=True, text=True,
+                                        timeout=120).stdout)  # fmt: skip
+    assert as_json["violations"] == 3 and all(found["line"] for found in as_json["findings"])
+    junit = subprocess.run([*SEGB, "check", str(log), "--format", "junit"], capture_output=True, text=True, timeout=120)
+    assert '<testsuite name="segb check' in junit.stdout and 'failures="3"' in junit.stdout
+
+
+def test_check_passes_a_clean_log_and_takes_a_folder_of_rules(tmp_path: Path) -> None:
+    clean = tmp_path / "clean.ttl"
+    clean.write_text('<https://example.org/r> a <http://kb.openrobots.org#Robot> ; <http://schema.org/name> "R" .\n')
+    result = subprocess.run([*SEGB, "check", str(clean)], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0 and result.stdout.strip().endswith("0 violations, 0 warnings, 0 infos")
+    rules = tmp_path / "rules"
+    rules.mkdir()
+    (rules / "robot-named-r.rq").write_text(
+        "# id: robot-named-r\n# title: A robot named R\n# severity: violation\n# key: ?focus\n"
+        'SELECT ?time ?focus ?message WHERE { ?focus <http://schema.org/name> "R" . BIND ("named R" AS ?message) }\n'
+        "ORDER BY ?time ?focus\n"
+    )
+    flagged = subprocess.run([*SEGB, "check", str(clean), "--rules", str(rules)], capture_output=True, text=True,
+                             timeout=120)  # fmt: skip
+    assert flagged.returncode == 1
+    assert f"{clean}:1: violation: [robot-named-r] named R <https://example.org/r>" in flagged.stdout
+    missing = subprocess.run([*SEGB, "check", str(tmp_path / "nope.ttl")], capture_output=True, text=True, timeout=60)
+    assert missing.returncode != 0 and "no such file" in missing.stderr

@@ -1,6 +1,7 @@
 """docker-compose.yaml: valid for compose, every variable in .env.example, and the tutorial holding on its services.
 
-No Docker engine runs here, so the last test runs the services natively with exactly the commands and
+The container tier (tests/containers) runs the stack itself on a Docker daemon; these tests are its fast
+companions, and need no daemon. The last ones run the services natively with exactly the commands and
 environment `docker-compose config` resolves (plus the image's ENV from the Dockerfile), changed only by
 `tests.support.compose.to_native`, which stands in for Docker's network and volumes: service names in URLs
 become 127.0.0.1, absolute paths move under a directory standing for the container's `/`, and the ports
@@ -16,12 +17,14 @@ import subprocess
 from collections.abc import Iterator
 from contextlib import ExitStack
 from dataclasses import dataclass
+from ipaddress import ip_address, ip_network
 from pathlib import Path
 from typing import Any
 
 import httpx
 import psycopg
 import pytest
+import yaml
 
 from tests.support.compose import (
     COMPOSE_FILE,
@@ -73,8 +76,11 @@ def test_config_resolves_the_four_services_with_the_example_env(compose: dict[st
     assert "ports" not in services["virtuoso"]  # Virtuoso is reached by the backend only
     # The backend is published through the proxy only and names no container: `--scale backend=N` works.
     assert "ports" not in services["backend"] and "container_name" not in services["backend"]
-    assert services["proxy"]["ports"] == [{"published": 5000, "target": 5000}]
-    assert services["ui"]["ports"] == [{"published": 8080, "target": 8080}]
+    # Published on this machine's loopback only, unless PUBLISH_ADDRESS says otherwise.
+    assert services["proxy"]["ports"] == ["127.0.0.1:5000:5000/tcp"]
+    assert services["ui"]["ports"] == ["127.0.0.1:8080:8080/tcp"]
+    # Built by `up`, never pulled: no registry has segb-server:local.
+    assert services["backend"]["pull_policy"] == services["ui"]["pull_policy"] == "build"
     assert services["backend"]["depends_on"] == {"virtuoso": HEALTHY}
     assert services["proxy"]["depends_on"] == {"backend": HEALTHY}
     assert services["ui"]["depends_on"] == {"proxy": HEALTHY}
@@ -99,7 +105,12 @@ def test_config_passes_the_example_env_to_the_containers(compose: dict[str, Any]
     assert backend["VIRTUOSO_ENDPOINT"] == "http://virtuoso:8890/sparql-auth"
     assert backend["VIRTUOSO_PASSWORD"] == example["VIRTUOSO_PASSWORD"]
     assert backend["SECRET_KEY"] == ""  # auth off in the example
-    assert backend["FORWARDED_ALLOW_IPS"] == "*"  # only the proxy reaches it
+    # The backend believes the X-Forwarded-For of the proxy's fixed address only, inside the stack's own subnet.
+    proxy_address = services["proxy"]["networks"]["default"]["ipv4_address"]
+    assert backend["FORWARDED_ALLOW_IPS"] == proxy_address
+    [addresses] = compose["networks"]["default"]["ipam"]["config"]
+    assert ip_address(proxy_address) in ip_network(addresses["subnet"])
+    assert ip_address(proxy_address) not in ip_network(addresses["ip_range"])  # never given to another container
     assert "STATE_URL" not in backend  # SQLite in the shared volume unless docker-compose.postgres.yaml is added
     assert services["ui"]["environment"]["BACKEND_URL"] == "http://proxy:5000"
     assert "VIRTUOSO_PASSWORD" not in services["ui"]["environment"]  # the UI holds no store credentials
@@ -139,6 +150,15 @@ def test_the_postgres_override_without_its_password_fails_naming_it(tmp_path: Pa
     result = run_compose_config(tmp_path, env, (COMPOSE_FILE, POSTGRES_OVERRIDE))
     assert result.returncode != 0
     assert "set POSTGRES_PASSWORD in .env to use docker-compose.postgres.yaml" in result.stderr
+
+
+def test_config_publishes_on_the_address_chosen_in_the_env(tmp_path: Path) -> None:
+    env = ENV_EXAMPLE.read_text().replace("PUBLISH_ADDRESS=127.0.0.1", "PUBLISH_ADDRESS=0.0.0.0")
+    result = run_compose_config(tmp_path, env)
+    assert result.returncode == 0, result.stderr
+    services = yaml.safe_load(result.stdout)["services"]
+    assert services["proxy"]["ports"] == ["0.0.0.0:5000:5000/tcp"]
+    assert services["ui"]["ports"] == ["0.0.0.0:8080:8080/tcp"]
 
 
 def test_config_without_the_virtuoso_password_fails_naming_it(tmp_path: Path) -> None:
@@ -293,11 +313,16 @@ class RunningStack:
 def bring_up(stack: NativeStack, running: ExitStack) -> RunningStack:
     """Every service in compose's order, each once the one it depends on is healthy (by its own check)."""
     # virtuoso: started as the image would be, with DBA_PASSWORD as the dba password.
+    assert run_virtuoso_healthcheck(stack).returncode != 0  # not started: unhealthy
     stack.virtuoso.start()
     running.callback(stack.virtuoso.stop)
-    assert run_virtuoso_healthcheck(stack).returncode != 0  # still the fresh database's password
+    # Still the fresh database's password: Virtuoso answers, refusing it, and the check says so (the backend's
+    # log says more); healthy, so that the backend starts and can say why it cannot log in.
+    refused = run_virtuoso_healthcheck(stack)
+    assert (refused.returncode, b"Virtuoso refused DBA_PASSWORD" in refused.stdout) == (0, True)
     stack.virtuoso.set_dba_password(stack.services["virtuoso"]["environment"]["DBA_PASSWORD"])
-    assert run_virtuoso_healthcheck(stack).returncode == 0
+    accepted = run_virtuoso_healthcheck(stack)
+    assert (accepted.returncode, accepted.stdout) == (0, b"")
 
     backends = [stack.start("backend", running, replica) for replica in range(len(stack.backend_ports))]
     _, image_check = image_healthcheck(final_stage())

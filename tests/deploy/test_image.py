@@ -44,7 +44,7 @@ def packages() -> list[str]:
     """Top-level folders of the checkout that setup.py installs under `segb_server`."""
     mapped = re.search(r"CODE_FOLDERS = \(([^)]*)\)", (ROOT / "setup.py").read_text())
     assert mapped, "setup.py names its CODE_FOLDERS"
-    return sorted([*re.findall(r'"([a-z_]+)"', mapped.group(1)), "sparql"])
+    return sorted([*re.findall(r'"([a-z_]+)"', mapped.group(1)), "sparql", "rules"])
 
 
 def test_lock_pins_every_runtime_dependency_with_hashes() -> None:
@@ -69,8 +69,29 @@ def test_build_stage_installs_the_lock_with_hashes_and_copies_every_package() ->
     assert "--require-hashes -r requirements.lock" in runs
     copied = {source for sources, _ in stage_copies(build_stage()) for source in sources}
     assert {"requirements.lock", "pyproject.toml", "setup.py", "README.md"} <= copied
-    assert packages() == ["backend", "examples", "sparql", "ui"]
+    assert packages() == ["backend", "examples", "rules", "sparql", "ui"]
     assert set(packages()) <= copied  # `segb demo` and `segb serve --demo` import examples.emotion_mirror
+
+
+def test_build_stage_builds_the_project_with_the_locked_build_tools_only() -> None:
+    """`pip install .` with build isolation would fetch the newest setuptools, unpinned and unchecked: the
+    image builds the project with the lock's setuptools instead, and downloads nothing at that step."""
+    runs = [i.arguments for i in build_stage() if i.keyword == "RUN"]
+    [install] = [run for run in runs if run.endswith(" .")]
+    assert "--no-build-isolation" in install and "--no-index" in install
+    entries = locked()
+    for requirement in map(Requirement, PYPROJECT["build-system"]["requires"]):
+        name = canonicalize_name(requirement.name)
+        assert name in entries, f"{requirement.name} (pyproject's build-system) is not in requirements.lock"
+        version, hashes = entries[name]
+        assert requirement.specifier.contains(version) and hashes > 0, f"{name}=={version} ≠ {requirement}"
+
+
+def test_dockerfile_names_no_frontend_so_buildkit_needs_no_registry() -> None:
+    """A `# syntax=` parser directive makes every BuildKit build fetch that frontend image first, which fails
+    offline or behind a registry mirror; the built-in frontend reads this Dockerfile."""
+    leading = [line for line in (ROOT / "Dockerfile").read_text().splitlines() if line.startswith("#")]
+    assert not [line for line in leading if re.match(r"#\s*syntax\s*=", line, re.IGNORECASE)]
 
 
 def test_final_stage_runs_unprivileged_on_the_same_base_without_build_tools() -> None:
@@ -99,7 +120,8 @@ def test_healthcheck_probes_api_readiness() -> None:
 
 
 def test_package_built_from_the_build_stage_copies_holds_every_runtime_file(tmp_path: Path) -> None:
-    """What `pip install --no-deps .` installs in the image: built from exactly the files the stage copies."""
+    """What `pip install --no-deps .` installs in the image: built from exactly the files the stage copies,
+    with the same build tools (the lock's setuptools, no build isolation, nothing downloaded)."""
     source = tmp_path / "src"
     for sources, destination in stage_copies(build_stage()):
         for name in sources:
@@ -111,8 +133,9 @@ def test_package_built_from_the_build_stage_copies_holds_every_runtime_file(tmp_
             else:
                 target.parent.mkdir(parents=True, exist_ok=True)
                 shutil.copy(ROOT / name, target)
+    as_the_image_does = ["--no-deps", "--no-build-isolation", "--no-index"]
     built = subprocess.run(
-        [sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(tmp_path / "wheel"), str(source)],
+        [sys.executable, "-m", "pip", "wheel", "-q", *as_the_image_does, "-w", str(tmp_path / "wheel"), str(source)],
         capture_output=True,
         text=True,
         timeout=300,
@@ -129,6 +152,7 @@ def test_package_built_from_the_build_stage_copies_holds_every_runtime_file(tmp_
     assert needed - in_wheel == set()
     assert "segb_server/ui/static/vendor/cytoscape/cytoscape.min.js" in in_wheel
     assert "segb_server/sparql/reports/participants.rq" in in_wheel
+    assert "segb_server/rules/late-answer.rq" in in_wheel and "segb_server/rules/time-not-datetime.ttl" in in_wheel
     assert not any(name.startswith(("backend/", "ui/", "examples/")) for name in in_wheel)  # nothing top-level
     entry_points = next(name for name in in_wheel if name.endswith("entry_points.txt"))
     assert "segb = segb_server.backend.cli:main" in zipfile.ZipFile(wheel).read(entry_points).decode()

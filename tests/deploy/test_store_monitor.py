@@ -17,12 +17,14 @@ pytestmark = pytest.mark.virtuoso
 READY = b'{"ready": true, "virtuoso": true}'
 
 
-def start_api(directory: Path, api_port: int, virtuoso_http_port: int) -> NativeProcess:
+def start_api(
+    directory: Path, api_port: int, virtuoso_http_port: int, password: str = VirtuosoProcess.password
+) -> NativeProcess:
     environment = {
         **host_environment(directory),
         "STORE": "virtuoso",
         "VIRTUOSO_ENDPOINT": f"http://127.0.0.1:{virtuoso_http_port}/sparql-auth",
-        "VIRTUOSO_PASSWORD": VirtuosoProcess.password,
+        "VIRTUOSO_PASSWORD": password,
         "DATA_DIR": str(directory / "data"),
         "STORE_RETRY_MAX_SECONDS": "1",
         "STORE_CHECK_SECONDS": "0.5",
@@ -65,3 +67,26 @@ def test_api_retries_until_virtuoso_answers_then_logs_losses_and_returns(tmp_pat
     # Shutdown cancels the background check cleanly: a normal exit, no traceback.
     assert exit_code == 0, api.output()[-3000:]
     assert "Traceback" not in api.output()
+
+
+def test_api_whose_password_virtuoso_refuses_says_why_in_its_log_and_readiness(
+    tmp_path: Path, virtuoso: VirtuosoProcess
+) -> None:
+    """VIRTUOSO_PASSWORD changed after Virtuoso's database was created: an error naming the cause and the way
+    out, at every retry, instead of retries that only say "not reachable"."""
+    api_port = free_port()
+    api = start_api(tmp_path, api_port, virtuoso.http_port, password="changed-after-the-volume-was-made")
+    try:
+        down = api.wait_for(f"http://127.0.0.1:{api_port}/healthz/ready", status=503).json()
+        log = api.wait_for_output("Virtuoso refused the password", count=2, timeout=30)
+    finally:
+        exit_code = api.stop()
+    explanation = (
+        "Virtuoso refused the password of user dba (HTTP 401): VIRTUOSO_PASSWORD is not that account's password. "
+        "Virtuoso keeps the password its database was created with (in docker compose: when the virtuoso-data "
+        "volume was created), so changing VIRTUOSO_PASSWORD later does not change it. Set VIRTUOSO_PASSWORD back "
+        "to that password, or change it in Virtuoso (isql: user_set_password('dba', '<new password>'))"
+    )
+    assert down == {"ready": False, "virtuoso": False, "detail": explanation}
+    assert f"ERROR segb.store: store not reachable (virtuoso, attempt 1): {explanation}; retrying in 0.5 s" in log
+    assert exit_code == 0 and "Traceback" not in api.output()

@@ -9,7 +9,7 @@ from pathlib import Path
 from pyoxigraph import NamedNode, Quad
 
 from segb_server.backend.config import PACKAGE_ROOT
-from segb_server.backend.services.sparql.catalog import Catalog
+from segb_server.backend.services.sparql.catalog import Catalog, CatalogQuery
 from segb_server.backend.services.upkeep.delta import Delta
 from segb_server.backend.services.upkeep.kept_queries.keys import KeyFinder
 from segb_server.backend.services.upkeep.kept_queries.plan import plan_report
@@ -50,3 +50,26 @@ def test_types_that_are_not_people_touch_no_emotion_key_and_ask_the_store_nothin
         assert store.asked == 1
     finally:
         store.close()
+
+
+def test_a_filter_nested_in_an_exists_a_bind_holds_is_in_the_plan() -> None:
+    """rdflib's translation drops `FILTER EXISTS { … }` inside the group of an EXISTS that a BIND holds; the plan
+    reads that group as written, so a triple matching only the nested pattern still finds its rows."""
+    query = CatalogQuery(
+        "reports/nested",
+        "Nested",
+        "",
+        "PREFIX schema: <http://schema.org/> PREFIX oro: <http://kb.openrobots.org#>\n# key: ?message\n"
+        "SELECT ?message ?human WHERE { ?message a schema:Message "
+        "BIND (EXISTS { ?message schema:sender ?sender FILTER EXISTS { ?sender a oro:Human } } AS ?human) }",
+    )
+    plan = plan_report(query)
+    assert "?sender <http://www.w3.org/1999/02/22-rdf-syntax-ns#type> <http://kb.openrobots.org#Human> ." in {
+        pattern.sparql() for pattern in plan.patterns
+    }
+    store = OxigraphStore("http://amor-segb/events")
+    sender = NamedNode("https://example.org/h/maria")
+    store.apply([Quad(NamedNode("https://example.org/m/1"), NamedNode("http://schema.org/sender"), sender)], 1)
+    typed = [Quad(sender, RDF_TYPE, NamedNode(PREFIXES["oro"] + "Human"))]
+    assert KeyFinder(plan, "message").units(Delta.of(typed), store) == {"<https://example.org/m/1>"}
+    store.close()

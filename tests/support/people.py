@@ -137,3 +137,13 @@ def care_home() -> Visit:
         ("ari", carla_talks), ("ari", ines_again),
     ]  # fmt: skip
     return visit
+
+
+def filler(subjects: int) -> str:
+    """Other robots' data to make a store big (two triples a subject, typed, so no audit rule finds anything in it),
+    as N-Triples: the embedded store then takes seconds to be written anew by an erasure."""
+    return "".join(
+        f"<https://example.org/filler/s{n}> <http://www.w3.org/1999/02/22-rdf-syntax-ns#type> "
+        f'<https://example.org/Filler> .\n<https://example.org/filler/s{n}> <https://example.org/p> "value {n}" .\n'
+        for n in range(subjects)
+    )

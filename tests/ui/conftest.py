@@ -50,6 +50,7 @@ def demo_pages(stack: UiStack) -> dict[str, str]:
     message = answer["rows"][0]["message"]
     pages = {
         "/reports": "reports",
+        "/findings": "findings",
         **{f"/reports/{name}": f"report-{name}" for name in REPORTS},
         "/kg-graph": "graph",
         "/explain?" + str(httpx.QueryParams({"iri": message})): "explain",

@@ -13,6 +13,7 @@ from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse, JSONResponse, Response
 
 from segb_server.ui.choices import participant_choices
+from segb_server.ui.findings_marks import findings_about
 from segb_server.ui.namesakes import tell_apart
 from segb_server.ui.pages import backend, render, token
 from segb_server.ui.query_params import query_values
@@ -82,4 +83,15 @@ async def explain_page(request: Request, iri: str = "") -> HTMLResponse:
     story = None
     if iri.strip():
         story = await backend(request).get_json("/explain", token=token(request), params={"iri": iri.strip()})
-    return render(request, "explain.html", {"iri": iri, "story": story})
+    marks = await findings_about(request, _story_iris(story)) if story else {}
+    return render(request, "explain.html", {"iri": iri, "story": story, "marks": marks})
+
+
+def _story_iris(story: dict[str, Any]) -> list[object]:
+    """The nodes a story names: its seed, and each step's activity, messages and emotions."""
+    found: list[object] = [story.get("iri")]
+    for step in story.get("steps", []):
+        found.append(step.get("activity"))
+        for key in ("heard", "said", "emotions"):
+            found += [item.get("iri") for item in step.get(key) or []]
+    return found

@@ -1,6 +1,6 @@
-"""/live/reports and /live/graph: the API's streams of view changes (Server-Sent Events), relayed with the
-viewer's session, so the page's script connects to its own origin (the CSP allows nothing else) and no token
-is ever in a URL."""
+"""/live/reports, /live/findings and /live/graph: the API's streams of view changes (Server-Sent Events), relayed
+with the viewer's session, so the page's script connects to its own origin (the CSP allows nothing else) and no
+token is ever in a URL."""
 
 from __future__ import annotations
 
@@ -22,6 +22,11 @@ async def live_reports(request: Request) -> StreamingResponse:
     return await _relay(request, "/reports/stream", {"report": request.query_params.getlist("report")})
 
 
+@router.get("/live/findings")
+async def live_findings(request: Request) -> StreamingResponse:
+    return await _relay(request, "/findings/stream", {})
+
+
 @router.get("/live/graph")
 async def live_graph(request: Request) -> StreamingResponse:
     return await _relay(request, "/graph/stream", {})
@@ -32,7 +37,7 @@ async def _relay(request: Request, path: str, params: dict[str, list[str]]) -> S
     # Event ids are digits: anything else was never sent by a stream, and goes no further (the stream starts
     # from now) rather than into a header of the request to the API.
     resume = request.headers.get("last-event-id") or request.query_params.get("after") or ""
-    if not (resume.isascii() and resume.isdigit()):
+    if not (resume.isascii() and resume.replace(".", "", 1).isdigit()):  # the findings' ids are `rows.shapes`
         resume = ""
     answer = await backend(request).open_stream(
         path,

@@ -10,6 +10,7 @@ from fastapi.responses import HTMLResponse, Response
 
 from segb_server.ui.api_client import BackendError
 from segb_server.ui.choices import participant_choices
+from segb_server.ui.findings_marks import findings_about
 from segb_server.ui.namesakes import Name, entity_names
 from segb_server.ui.pages import backend, render, token
 from segb_server.ui.query_params import paging, query_values
@@ -51,11 +52,35 @@ def _section(name: str, table: dict[str, Any], described: dict[str, Any], names:
     return {"name": name, "info": described, "table": table, **view_of(name, table, names)}
 
 
+async def _mark_findings(request: Request, sections: list[dict[str, Any]]) -> None:
+    """The conversations mark each message a finding is about (or whose activity one is about)."""
+    for section in sections:
+        if section["name"] == "conversations":
+            rows = section["table"]["rows"]
+            section["marks"] = await findings_about(
+                request, [row.get(key) for row in rows for key in ("message", "activity")]
+            )
+
+
 def live_after(tables: list[dict[str, Any]]) -> str:
     """Where the page's live stream starts: the oldest change the page's rows are known to include, so a change
     made while the page travels to the browser is still announced (empty: from when the stream opens)."""
     seen = [table["last_event_id"] for table in tables if table.get("last_event_id") is not None]
     return str(min(seen)) if seen else ""
+
+
+def behind(tables: list[dict[str, Any]]) -> str | None:
+    """What the page says when its rows do not include everything robots have published yet (the server is
+    catching up): how far behind, in time and in posts."""
+    lags = [table["behind"] for table in tables if table.get("behind")]
+    if not lags:
+        return None
+    worst = max(lags, key=lambda lag: (lag["seconds"], lag["entries"]))
+    posts = worst["entries"]
+    return (
+        f"These rows are {worst['seconds']:.1f} s behind what robots have published ({posts} "
+        f"{'post' if posts == 1 else 'posts'} on the way): the server is catching up."
+    )
 
 
 def _supported(filters: dict[str, str], described: dict[str, Any]) -> dict[str, str]:
@@ -79,6 +104,7 @@ async def reports_overview(request: Request) -> HTMLResponse:
     # One name per entity on the whole page: a namesake carries the same qualifier in every report.
     shown = entity_names(table["rows"] for table in tables)
     sections = [_section(name, table, described[name], shown) for name, table in zip(names, tables, strict=True)]
+    await _mark_findings(request, sections)
     return render(
         request,
         "reports.html",
@@ -90,6 +116,7 @@ async def reports_overview(request: Request) -> HTMLResponse:
             "choices": choices,
             "query": request.url.query,
             "live_after": live_after(tables),
+            "behind": behind(tables),
         },
     )
 
@@ -106,11 +133,13 @@ async def one_report(request: Request, name: str) -> HTMLResponse:
         client.get_json(f"/reports/{name}", token=user_token, params={**filters, "limit": limit, "offset": offset}),
         participant_choices(request),
     )
+    section = _section(name, table, described, entity_names([table["rows"]]))
+    await _mark_findings(request, [section])
     return render(
         request,
         "report.html",
         {
-            "report": _section(name, table, described, entity_names([table["rows"]])),
+            "report": section,
             "parameters": described["parameters"],
             "filters": filters,
             "choices": choices,
@@ -118,6 +147,7 @@ async def one_report(request: Request, name: str) -> HTMLResponse:
             "limit": limit,
             "offset": offset,
             "live_after": live_after([table]),
+            "behind": behind([table]),
         },
     )
 

@@ -84,7 +84,7 @@ async def stream(
         last = min(last, newest)
         return [b"event: reset\ndata: {}\n\n"]
 
-    return _event_stream(request, opening, changes, rows.changed)
+    return event_stream(request, opening, changes, rows.changed)
 
 
 @router.get(
@@ -116,7 +116,7 @@ async def graph_stream(request: Request, services: ServicesDep, principal: Audit
     async def opening() -> list[bytes]:
         return []
 
-    return _event_stream(request, opening, changes, index.changed)
+    return event_stream(request, opening, changes, index.changed)
 
 
 def event_id(raw: str) -> int | None:
@@ -125,7 +125,7 @@ def event_id(raw: str) -> int | None:
     return int(raw) if raw.isascii() and raw.isdigit() and len(raw) <= MAX_EVENT_ID_DIGITS else None
 
 
-def _event_stream(
+def event_stream(
     request: Request,
     opening: Callable[[], Awaitable[list[bytes]]],
     changes: Callable[[], Awaitable[list[bytes]]],

@@ -143,8 +143,10 @@ def _parameters(query: CatalogQuery) -> list[dict[str, Any]]:
 def _description(query: CatalogQuery) -> str:
     return (
         f"{query.description}\n\nRows as `{{report, title, description, parameters, columns, rows, limit, offset, "
-        "has_more, next, served_from, last_event_id}}`, or CSV with `Accept: text/csv` or `?format=csv`. Filters "
-        "are bound as typed values, never spliced into SPARQL; a bad or unknown filter is a 422 naming it. "
+        "has_more, next, served_from, last_event_id, behind}}`, or CSV with `Accept: text/csv` or `?format=csv`. "
+        "Filters are bound as typed values, never spliced into SPARQL; a bad or unknown filter is a 422 naming it. "
         "`last_event_id`: send it as `Last-Event-ID` to `GET /reports/stream` to hear of every change these rows "
-        "do not include (null when the report is evaluated in full)."
+        "do not include (null when the report is evaluated in full). `behind`: `{entries, seconds}` when the rows do "
+        "not include everything robots have published yet (journal entries on their way, and how long the oldest has "
+        "waited), else null."
     )

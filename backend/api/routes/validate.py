@@ -12,6 +12,7 @@ from pydantic import BaseModel, Field
 from segb_server.backend.api.deps import Admin, LimitedBody, ServicesDep
 from segb_server.backend.services.ingest.payloads import IngestRequest
 from segb_server.backend.services.ingest.validation import MAX_ISSUES, ValidationReport, validate_body
+from segb_server.backend.services.rules.offline import check_quads
 
 router = APIRouter(tags=["ingest"])
 
@@ -39,6 +40,19 @@ class IssueOut(BaseModel):
     column: int | None = Field(description="Column of a syntax error (1-based), when known.")
 
 
+class FindingOut(BaseModel):
+    rule: str = Field(examples=["late-answer"])
+    severity: Literal["violation", "warning", "info"]
+    title: str
+    focus: str | None = Field(description="What the finding is about (an IRI).")
+    message: str | None
+    time: str | None
+    robot: str | None
+    human: str | None
+    values: dict[str, object]
+    line: int | None = Field(description="The first line of the document that names the focus, when one does.")
+
+
 class ValidationOut(BaseModel):
     valid: bool = Field(description="No finding of severity `error` (as the reference reports it).")
     syntax_ok: bool = Field(description="The parser found no syntax error.")
@@ -51,11 +65,20 @@ class ValidationOut(BaseModel):
     error_count: int
     warning_count: int
     issues_truncated: bool = Field(description=f"More than {MAX_ISSUES} findings: `issues` holds the first ones.")
+    findings: list[FindingOut] = Field(
+        description="What the audit rules (GET /rules) find in this document by itself, in time order."
+    )
+    rules_ok: bool = Field(description="No audit rule of severity `violation` finds anything in the document.")
 
     @classmethod
     def of(cls, report: ValidationReport) -> ValidationOut:
+        violations = sum(1 for found in report.findings if found["severity"] == "violation")
         return cls(
-            **asdict(report), valid=report.valid, semantic_ok=report.valid, issues_truncated=report.issues_truncated
+            **asdict(report),
+            valid=report.valid,
+            semantic_ok=report.valid,
+            issues_truncated=report.issues_truncated,
+            rules_ok=violations == 0,
         )
 
 
@@ -73,7 +96,10 @@ class ValidationOut(BaseModel):
         "write scopes, `SEM_EMPTY_GRAPH`) and the reference's rules on the robots' "
         "vocabulary (`SEM_RDF_TYPE_LITERAL`, `SEM_OBJECT_PROPERTY_LITERAL`, `SEM_DATETIME_*`, `SEM_INTENSITY_*`, "
         "`SEM_EMOTION_CATEGORY_LITERAL`, and the warning `SEM_SUBJECT_WITHOUT_TYPE`). `ingest_ok` tells whether "
-        "POST /ttl would store the document. Nothing is written and the store is not needed. A request POST /ttl "
+        "POST /ttl would store the document. `findings`: what the audit rules (`GET /rules`) find in the document "
+        "by itself (evaluated on an in-memory store holding only it: a robot's client posts its whole log), each "
+        "with the `line` that first names its focus; `rules_ok` is false when one of them is a violation (`valid` "
+        "keeps the reference's meaning). Nothing is written and the store is not needed. A request POST /ttl "
         "would refuse before reading RDF gets its status: 413 over MAX_BODY_BYTES or MAX_DECOMPRESSED_BYTES, 415 "
         "for another Content-Type or Content-Encoding, 422 for a malformed JSON body."
     ),
@@ -90,5 +116,10 @@ async def validate(request: Request, services: ServicesDep, principal: Admin, bo
         max_decompressed_bytes=settings.max_decompressed_bytes,
         max_triples=settings.max_triples_per_post,
         scopes=principal.scopes,
+        rules=lambda quads, data: (
+            check_quads(
+                services.findings.catalog, quads, data.decode("utf-8", errors="replace"), services.findings.shape_rules
+            ).findings
+        ),
     )
     return ValidationOut.of(report)

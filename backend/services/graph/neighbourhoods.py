@@ -25,7 +25,7 @@ MAX_KEPT_REACH = 20_000
 @dataclass(frozen=True)
 class _Kept:
     through: int  # the index's journal entry when the view was drawn (or last found current)
-    reached: frozenset[str]  # every node within the depth, drawn or not
+    reached: frozenset[int]  # every node within the depth (its id), drawn or not
     view: dict[str, object]
 
 
@@ -38,7 +38,7 @@ class KeptNeighbourhoods:
         self,
         connection: Any,
         request: object,
-        draw: Callable[[], tuple[dict[str, object], frozenset[str] | None]],
+        draw: Callable[[], tuple[dict[str, object], frozenset[int] | None]],
     ) -> dict[str, object]:
         """`request`'s view: kept, or drawn by `draw` (the view, and the nodes it reaches or None when they are
         more than `MAX_KEPT_REACH`) and kept."""
@@ -69,8 +69,8 @@ def _current(connection: Any, kept: _Kept) -> bool:
     """Whether no step after the kept view wrote a node it reaches. The log starts again at a build or a
     clearing, and drops its oldest steps: a view older than its start is drawn again. The log is read before its
     start: a pruning meanwhile, which could have removed a change, then says so."""
-    changed = connection.execute("SELECT DISTINCT iri FROM graph_changes WHERE seq > ?", (kept.through,)).fetchall()
+    changed = connection.execute("SELECT DISTINCT node FROM graph_changes WHERE seq > ?", (kept.through,)).fetchall()
     (complete_from,) = connection.execute("SELECT changes_from FROM graph_state").fetchone()
     if complete_from > kept.through:
         return False
-    return not any(iri in kept.reached for (iri,) in changed)
+    return not any(node in kept.reached for (node,) in changed)

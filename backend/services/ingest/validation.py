@@ -19,7 +19,7 @@ refused with the same 413/415/422 as POST /ttl.
 from __future__ import annotations
 
 import re
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from datetime import datetime
 from decimal import Decimal, InvalidOperation
@@ -77,6 +77,7 @@ class ValidationReport:
     ingest_ok: bool = True
     triple_count: int = 0
     issues: list[Issue] = field(default_factory=list)
+    findings: list[dict[str, object]] = field(default_factory=list)  # the audit rules' (services/rules/offline.py)
     error_count: int = 0
     warning_count: int = 0
 
@@ -111,10 +112,12 @@ def validate_body(
     max_decompressed_bytes: int,
     max_triples: int,
     scopes: tuple[str, ...] = (),
+    rules: Callable[[list[Quad], bytes], list[dict[str, object]]] | None = None,
 ) -> ValidationReport:
-    """The report on a POST /ttl body from a caller with write `scopes`. Raises the ingest's own errors for a
-    request it would refuse before reading any RDF (unsupported type or encoding, bad JSON, too large once
-    decompressed). Blank nodes are checked as they came: skolemising them refuses nothing."""
+    """The report on a POST /ttl body from a caller with write `scopes`, with what the audit `rules` find in the
+    document when given (the rules' service runs them: this module hands them what it parsed). Raises the ingest's
+    own errors for a request it would refuse before reading any RDF (unsupported type or encoding, bad JSON, too
+    large once decompressed). Blank nodes are checked as they came: skolemising them refuses nothing."""
     report = ValidationReport()
     try:
         payload = decode_ingest_body(
@@ -146,6 +149,8 @@ def validate_body(
         return report
     for issue in semantic_issues(quads):
         report.add(issue)
+    if rules is not None:
+        report.findings = rules(quads, payload.data)
     return report
 
 

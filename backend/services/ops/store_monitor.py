@@ -6,7 +6,7 @@ import logging
 
 import anyio
 
-from segb_server.backend.store.base import Store, StoreError
+from segb_server.backend.store.base import Store, StoreCredentialsRefused, StoreError
 
 logger = logging.getLogger("segb.store")
 
@@ -18,7 +18,9 @@ class StoreMonitor:
     `max_retry_seconds`); once it answers, one check per `check_seconds`, logging only the transitions.
 
     A server that starts before its store (a container that comes up before Virtuoso) thereby keeps
-    retrying and says so, instead of failing its first requests silently or exiting."""
+    retrying and says so, instead of failing its first requests silently or exiting. A store that refuses the
+    server's credentials is an error to correct, logged as one with the store's explanation; the retries go on,
+    so a password corrected in the store is picked up."""
 
     def __init__(self, store: Store, *, max_retry_seconds: float, check_seconds: float) -> None:
         self.store = store
@@ -48,16 +50,21 @@ class StoreMonitor:
                 logger.warning("store lost (%s): %s", self.store.kind, problem)
             self.reachable = False
             attempt += 1
-            logger.warning(
-                "store not reachable (%s, attempt %d): %s; retrying in %.1f s", self.store.kind, attempt, problem, delay
+            logger.log(
+                logging.ERROR if isinstance(problem, StoreCredentialsRefused) else logging.WARNING,
+                "store not reachable (%s, attempt %d): %s; retrying in %.1f s",
+                self.store.kind,
+                attempt,
+                problem,
+                delay,
             )
             await anyio.sleep(delay)
             delay = min(delay * 2, self.max_retry_seconds)
 
-    async def _ping(self) -> str | None:
+    async def _ping(self) -> StoreError | None:
         """None when the store answers, else what went wrong."""
         try:
             await anyio.to_thread.run_sync(self.store.ping, limiter=self._limiter)
         except StoreError as error:
-            return str(error)
+            return error
         return None

@@ -4,14 +4,15 @@ from __future__ import annotations
 
 import csv
 import io
-from collections.abc import Mapping
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, replace
 
 from segb_server.backend.services.errors import Conflict, InvalidParameter, NotFound
 from segb_server.backend.services.ops.result_cache import DataVersion, ResultCache
 from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, Catalog, CatalogQuery, paged
 from segb_server.backend.services.upkeep.kept_queries.projection import KeptQueries
 from segb_server.backend.services.values import JsonValue, json_value
+from segb_server.backend.services.writing.write_path import Lag
 from segb_server.backend.store.base import Bindings, Store, select
 
 FOLDER = "reports"
@@ -35,6 +36,24 @@ def describe(query: CatalogQuery) -> dict[str, object]:
 
 
 @dataclass(frozen=True)
+class Behind:
+    """Journal entries robots published that an answer does not include yet, and how long the oldest has waited."""
+
+    entries: int
+    seconds: float
+
+    @classmethod
+    def of(cls, lag: Lag, served_from: str) -> Behind | None:
+        """Rows kept as the store changes lag by both the store's and the views' upkeep; a query's answer by the
+        store's alone."""
+        if served_from == "rows" and lag.views_entries:
+            return cls(lag.apply_entries + lag.views_entries, round(lag.views_seconds, 3))
+        if lag.apply_entries:
+            return cls(lag.apply_entries, round(lag.apply_seconds, 3))
+        return None
+
+
+@dataclass(frozen=True)
 class ReportTable:
     """One page of a report. `has_more` tells whether rows follow past `offset + limit`."""
 
@@ -47,6 +66,7 @@ class ReportTable:
     next: str | None = None  # the cursor of the next page (`after=`), when rows are served from the report's rows
     served_from: str = "query"  # "rows" (kept current as the graph changes) or "query" (evaluated in full)
     last_event_id: int | None = None  # where `GET /reports/stream` resumes to hear of every later change
+    behind: Behind | None = None  # how far these rows are behind what robots have published, when they are
 
     def as_json(self) -> dict[str, object]:
         described = describe(self.query)
@@ -64,6 +84,7 @@ class ReportTable:
             "next": self.next,
             "served_from": self.served_from,
             "last_event_id": self.last_event_id,
+            "behind": None if self.behind is None else {"entries": self.behind.entries, "seconds": self.behind.seconds},
         }
 
     def as_csv(self) -> str:
@@ -93,11 +114,15 @@ class ReportService:
         store: Store,
         cache: ResultCache | None = None,
         maintainer: KeptQueries | None = None,
+        lag: Callable[[], Lag] | None = None,
     ) -> None:
+        """`lag`: how far the store and the views are behind the journal (the write path's), for answers that
+        say how far behind they are."""
         self.catalog = catalog
         self.store = store
         self.cache = cache or ResultCache(DataVersion(), enabled=False)
         self.maintainer = maintainer
+        self._lag = lag
 
     def reports(self) -> list[CatalogQuery]:
         return self.catalog.under(FOLDER)
@@ -116,8 +141,16 @@ class ReportService:
     def run(
         self, name: str, filters: Mapping[str, str | None], limit: int, offset: int = 0, after: str | None = None
     ) -> ReportTable:
-        """Rows `offset`…`offset+limit` (or the `limit` rows after the cursor `after`) of a report; blocking
-        (SQLite or store I/O), so call it off the event loop."""
+        """Rows `offset`…`offset+limit` (or the `limit` rows after the cursor `after`) of a report, saying how far
+        behind the log they are when they are; blocking (SQLite or store I/O), so call it off the event loop."""
+        table = self._run(name, filters, limit, offset, after)
+        if self._lag is None:
+            return table
+        return replace(table, behind=Behind.of(self._lag(), table.served_from))
+
+    def _run(
+        self, name: str, filters: Mapping[str, str | None], limit: int, offset: int, after: str | None
+    ) -> ReportTable:
         query = self.report(name)
         bindings = query.bindings(filters)
         if self.maintainer is not None:

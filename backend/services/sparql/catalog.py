@@ -38,7 +38,7 @@ from segb_server.backend.store.base import Bindings, Term
 ParameterType = TypingLiteral["iri", "dateTime", "decimal", "integer", "string"]
 XSD = "http://www.w3.org/2001/XMLSchema#"
 
-_HEADER = re.compile(r"#\s*(title|description|same-as):\s*(.*)")
+_HEADER = re.compile(r"#\s*([a-z][a-z-]*):\s*(.*)")  # title, description, same-as; rules add their own
 PARAMETER_VARIABLE_PREFIX = "param_"
 _PARAM = re.compile(
     r"#\s*param\s+(?P<name>[A-Za-z_]\w*)\s*:\s*(?P<type>iri|dateTime|decimal|integer|string)"
@@ -63,6 +63,7 @@ class CatalogQuery:
     description: str
     text: str
     parameters: dict[str, Parameter] = field(default_factory=dict)
+    same_as: str | None = None  # a preset's base: the query whose text and parameters it has
 
     def bindings(self, values: Mapping[str, str | None]) -> Bindings:
         """Typed terms for the given values (strings from a query string); 422 naming a bad parameter."""
@@ -120,13 +121,15 @@ def paged(text: str, limit: int | None, offset: int | None) -> str:
 
 
 @dataclass(frozen=True)
-class _Header:
+class Header:
+    """A query file's header: its `# name: value` lines, its parameters, and the whole text."""
+
     meta: dict[str, str]
     parameters: dict[str, Parameter]
     text: str
 
 
-def _read_header(text: str) -> _Header:
+def read_header(text: str) -> Header:
     meta: dict[str, str] = {}
     parameters: dict[str, Parameter] = {}
     for line in text.splitlines():
@@ -137,10 +140,10 @@ def _read_header(text: str) -> _Header:
             parameters[match["name"]] = Parameter(match["name"], kind, (match["help"] or "").strip(), match["default"])
         elif match := _HEADER.match(line):
             meta[match.group(1)] = match.group(2).strip()
-    return _Header(meta, parameters, text)
+    return Header(meta, parameters, text)
 
 
-def _resolve(name: str, headers: dict[str, _Header]) -> CatalogQuery:
+def _resolve(name: str, headers: dict[str, Header]) -> CatalogQuery:
     """The query of one file; a `same-as` preset takes its base's text and parameters, then its own overrides."""
     header = headers[name]
     text, parameters = header.text, header.parameters
@@ -149,7 +152,8 @@ def _resolve(name: str, headers: dict[str, _Header]) -> CatalogQuery:
         if base is None or "same-as" in base.meta:
             raise ValueError(f"{name}.rq: same-as names '{base_name}', which is not a query of its own")
         text, parameters = base.text, {**base.parameters, **header.parameters}
-    return CatalogQuery(name, header.meta.get("title", name), header.meta.get("description", ""), text, parameters)
+    title, description = header.meta.get("title", name), header.meta.get("description", "")
+    return CatalogQuery(name, title, description, text, parameters, header.meta.get("same-as"))
 
 
 class CatalogError(ServiceError):
@@ -167,7 +171,7 @@ class Catalog:
     def __init__(self, directory: Path, required: tuple[str, ...] = ()) -> None:
         self.directory = directory
         headers = {
-            path.relative_to(directory).with_suffix("").as_posix(): _read_header(path.read_text(encoding="utf-8"))
+            path.relative_to(directory).with_suffix("").as_posix(): read_header(path.read_text(encoding="utf-8"))
             for path in sorted(directory.rglob("*.rq"))
         }
         if not headers:

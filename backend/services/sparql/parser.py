@@ -8,10 +8,11 @@ import, while only one thread exists, so pyparsing settles its internal state be
 
 from __future__ import annotations
 
+import functools
 import threading
 
 from pyparsing import ParseResults
-from rdflib.plugins.sparql.algebra import translateQuery
+from rdflib.plugins.sparql.algebra import translatePath, translatePName, translatePrologue, translateQuery, traverse
 from rdflib.plugins.sparql.parser import parseQuery, parseUpdate
 from rdflib.plugins.sparql.parserutils import CompValue
 
@@ -30,10 +31,41 @@ def translate_query(text: str) -> CompValue:
         return translateQuery(parseQuery(text)).algebra
 
 
+def exists_groups(text: str) -> list[CompValue]:
+    """Every EXISTS and NOT EXISTS group of a query as written, names and property paths resolved but the groups
+    not translated to algebra: rdflib's translation drops a FILTER nested in the group of an EXISTS that a BIND
+    holds (`BIND (EXISTS { ?m :p ?h FILTER EXISTS { ?h a :C } } AS ?x)` keeps only `?m :p ?h`)."""
+    with _lock:
+        parsed = parseQuery(text)
+        prologue = translatePrologue(parsed[0], None)
+        tree = traverse(parsed[1], visitPost=functools.partial(translatePName, prologue=prologue))
+        tree = traverse(tree, visitPost=translatePath)
+    found: list[CompValue] = []
+
+    def collect(node: object) -> None:
+        if isinstance(node, CompValue):
+            if node.name in ("Builtin_EXISTS", "Builtin_NOTEXISTS"):
+                found.append(node["graph"])
+            for key, value in node.items():
+                if key != "_vars":
+                    collect(value)
+        elif isinstance(node, list | ParseResults):
+            for item in node:
+                collect(item)
+
+    collect(tree)
+    return found
+
+
 def parse_update(text: str) -> CompValue:
     """rdflib's parse tree of a SPARQL update (raises pyparsing's ParseBaseException, or RecursionError)."""
     with _lock:
         return parseUpdate(text)
+
+
+def exclusive() -> threading.Lock:
+    """The parser's lock, for code that parses through rdflib on its own (pySHACL): `with exclusive(): …`."""
+    return _lock
 
 
 parse_query("PREFIX warm: <urn:x:> SELECT ?s WHERE { ?s warm:p <urn:x:o> FILTER (?s != <urn:x:s>) } LIMIT 1")

@@ -53,6 +53,13 @@ class ViewDatabase:
                 self._readers[threading.current_thread()] = connection
         return connection
 
+    def writer(self) -> sqlite3.Connection:
+        """The writer's connection (made on first use): what `writing()` runs on, e.g. to watch the work a step
+        does with `set_progress_handler`."""
+        if self._writer is None:
+            self._writer = self._connect()
+        return self._writer
+
     def writing(self) -> _Writing:
         """`with database.writing() as connection:` one write transaction, one writer at a time. A `writing()`
         inside another, on the same thread, joins the outer transaction (several changes, one commit)."""
@@ -82,10 +89,9 @@ class _Writing:
         database._writer_lock.acquire()
         database._writing_thread = threading.get_ident()
         self._outermost = True
-        if database._writer is None:
-            database._writer = database._connect()
-        database._writer.execute("BEGIN IMMEDIATE")
-        return database._writer
+        connection = database.writer()
+        connection.execute("BEGIN IMMEDIATE")
+        return connection
 
     def __exit__(
         self, kind: type[BaseException] | None, error: BaseException | None, trace: TracebackType | None

@@ -28,7 +28,7 @@ import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 from pyoxigraph import Quad
 
@@ -85,6 +85,14 @@ class KeptView(Protocol):
     def prepared(self) -> None:
         """The view was built or caught up at start, and answers from now on (a view may get ready to answer
         its first request here)."""
+
+
+@runtime_checkable
+class ForgetsErased(Protocol):
+    """A view that keeps, past a clearing, what an erasure must remove (a table of terms, a change log)."""
+
+    def forget_erased(self) -> None:
+        """Called after every view was cleared for an erasure, before they are built again."""
 
 
 @dataclass
@@ -398,6 +406,9 @@ class ViewKeeper:
         for view in self.views:
             view.ready = False
             view.clear(erased_at)
+        for view in self.views:  # what a clearing keeps (tables of terms, change logs) goes too
+            if isinstance(view, ForgetsErased):
+                view.forget_erased()
         for view in self.views:
             self._build(view, current)
             view.ready = True

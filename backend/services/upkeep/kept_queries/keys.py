@@ -69,7 +69,7 @@ class KeyFinder:
         self.target = f"?{unit}"
         self._leads = [
             _Lead(PatternMatch(plan, pattern),
-                  [] if self.target in pattern.variables() else _chains(plan, pattern, self.target))
+                  [] if self.target in pattern.variables() else chains(plan, pattern, self.target))
             for pattern in plan.patterns
             if pattern not in ignored
         ]  # fmt: skip
@@ -124,7 +124,7 @@ class _Lead:
     chains: list[_Chain]
 
 
-def _chains(plan: ReportPlan, pattern: Pattern, target: str) -> list[_Chain]:
+def chains(plan: ReportPlan, pattern: Pattern, target: str) -> list[_Chain]:
     chains = []
     for path in paths(plan, pattern, target):
         # Only the variables the chain goes on from: a chain from a triple's subject needs no VALUES of its

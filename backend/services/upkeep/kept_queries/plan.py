@@ -19,7 +19,7 @@ from rdflib.plugins.sparql.parserutils import CompValue
 from rdflib.term import BNode, Identifier, URIRef, Variable
 
 from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, CatalogQuery
-from segb_server.backend.services.sparql.parser import translate_query
+from segb_server.backend.services.sparql.parser import exists_groups, translate_query
 
 _KEY = re.compile(r"#\s*key:\s*((?:\?\w+\s*)+)")
 Comparison = Literal["=", ">=", "<="]
@@ -99,6 +99,18 @@ class ReportPlan:
     def is_aggregate(self) -> bool:
         return bool(self.aggregates)
 
+    def unit(self) -> str:
+        """The variable (without ?) whose values identify the rows kept: the key, or for an aggregate what its
+        one COUNT(DISTINCT …) counts (its contributions are kept by it). Unsupported when there is none."""
+        if self.is_aggregate:
+            counted = [a for a in self.aggregates if a.function == "count" and a.distinct]
+            if len(counted) != 1:
+                raise Unsupported("an aggregate report needs one COUNT(DISTINCT ?x) to keep its contributions by")
+            return counted[0].argument[1:]
+        if len(self.key) != 1:
+            raise Unsupported("a report's key is one variable")
+        return self.key[0][1:]
+
     def guaranteed_patterns(self, pattern: Pattern) -> list[Pattern]:
         """The patterns that hold in every solution in which `pattern` is matched."""
         return [found for group in self.guaranteed[pattern.group] for found in self.mandatory.get(group, [])]
@@ -125,7 +137,7 @@ def declared_key(query: CatalogQuery) -> tuple[str, ...]:
 def plan_report(query: CatalogQuery) -> ReportPlan:
     """Raise Unsupported when the query holds something the plan cannot keep current."""
     algebra = translate_query(query.text)
-    walker = _Walker()
+    walker = _Walker(exists_groups(query.text))
     root = walker.new_group(None)
     walker.visit(algebra, root)
     columns = [f"?{variable}" for variable in algebra["PV"]]
@@ -161,7 +173,9 @@ def plan_report(query: CatalogQuery) -> ReportPlan:
 class _Walker:
     """Walks rdflib's algebra of a query, collecting patterns per scope group."""
 
-    def __init__(self) -> None:
+    def __init__(self, written: list[CompValue]) -> None:
+        # The EXISTS groups as written, by their triples (`_graph`)
+        self._written = {_triples_of(graph): graph for graph in written}
         self.patterns: list[Pattern] = []
         self.mandatory: dict[int, list[Pattern]] = {}
         self.parent: dict[int, int | None] = {}
@@ -300,7 +314,10 @@ class _Walker:
             self._graph(graph, self.new_group(group))
 
     def _graph(self, graph: CompValue, group: int) -> None:
-        """A group graph pattern as the parser leaves it inside EXISTS (not translated to algebra)."""
+        """A group graph pattern as the parser leaves it inside EXISTS (not translated to algebra). The group as
+        written, when the translation lost part of it (a FILTER nested in an EXISTS a BIND holds): its nested
+        EXISTS are patterns a new triple may change a row through."""
+        graph = self._written.get(_triples_of(graph), graph)
         for part in graph.get("part") or []:
             if part.name == "TriplesBlock":
                 for triples in part["triples"]:  # s p o s p o …: `;` and `,` lists come flattened
@@ -310,6 +327,8 @@ class _Walker:
             elif part.name == "InlineData":
                 if len(part["var"]) == 1 and all(isinstance(value, URIRef) for value in part["value"]):
                     self.narrowed[(group, f"?{part['var'][0]}")] = frozenset(value.n3() for value in part["value"])
+            elif part.name == "Filter":
+                self._expression(part["expr"], group)
             else:
                 raise Unsupported(f"{part.name} inside EXISTS")
 
@@ -337,6 +356,16 @@ class _Walker:
         if isinstance(predicate, MulPath | Path | Variable):
             raise Unsupported(f"the path or predicate {predicate}")
         raise Unsupported(f"the predicate {predicate!r}")
+
+
+def _triples_of(graph: CompValue) -> tuple[str, ...]:
+    """A group's triples as text: the same for the group as written and as the translation left it."""
+    return tuple(
+        str([str(term) for term in triples])
+        for part in graph.get("part") or []
+        if part.name == "TriplesBlock"
+        for triples in part["triples"]
+    )
 
 
 def _text(term: object) -> str:

@@ -16,8 +16,6 @@ import re
 from collections.abc import Iterable
 from dataclasses import replace
 
-from pyoxigraph import RdfFormat, Triple, parse
-
 from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, CatalogQuery
 from segb_server.backend.services.upkeep.delta import Delta
 from segb_server.backend.services.upkeep.kept_queries.facets import FacetPairs, facet_patterns
@@ -31,11 +29,11 @@ from segb_server.backend.services.upkeep.kept_queries.plan import (
 from segb_server.backend.services.upkeep.kept_queries.rows import KeptRows, Layout, Page, Row
 from segb_server.backend.store.base import Store, Term, select
 from segb_server.backend.store.sparql_text import code_only
-from segb_server.backend.store.terms import bind_rows, bind_values, term_text
+from segb_server.backend.store.terms import bind_texts, bind_values, term_text
 
 logger = logging.getLogger("segb.reports")
 
-PLAN_VERSION = "4"  # bump when the stored layout changes: every report is then built again
+PLAN_VERSION = "5"  # bump when the stored layout changes: every report is then built again
 CHANGES_KEPT = 20_000
 
 
@@ -128,7 +126,7 @@ class KeptQuery:
     def build(self, through: int) -> None:
         self.rows.create(self.layout, fresh=True)
         rows = self._evaluate(None)
-        self.rows.replace(self.layout, rows, rows, through)
+        self.rows.replace(self.layout, rows, rows, through, announce=False)
         for delta in self.facets:
             self.rows.add_facets(self.layout, delta.facet.parameter, delta.all_pairs(self.store))
         self.rows.set_state(self.name, self.fingerprint, through)
@@ -137,6 +135,10 @@ class KeptQuery:
     def clear(self, through: int) -> None:
         self.rows.clear(self.layout)
         self.rows.set_state(self.name, self.fingerprint, through)
+
+    def forget_erased(self) -> None:
+        """Called by the keeper between clearing every view and building them again after an erasure."""
+        self.rows.forget_erased()
 
     def update(self, delta: Delta, through: int) -> None:
         # The store is asked everything first, then the rows change in one transaction: the reports of a remote
@@ -169,7 +171,7 @@ class KeptQuery:
             bound = (
                 self.text
                 if chunk is None
-                else bind_rows(self.text, [self.unit], [[_term(unit)] for unit in chunk], wrap=self.store.wraps_values)
+                else bind_texts(self.text, [self.unit], [[unit] for unit in chunk], wrap=self.store.wraps_values)
             )
             for row in select(self.store, bound).rows:
                 unit = row.get(self.unit)
@@ -182,27 +184,14 @@ def _slices(items: list[str], size: int) -> list[list[str] | None]:
     return [items[start : start + size] for start in range(0, len(items), size)]
 
 
-def _term(text: str) -> Term:
-    """The term whose N-Triples text is `text` (how units are stored)."""
-    term = next(iter(parse(f"<urn:x:s> <urn:x:p> {text} .".encode(), RdfFormat.N_TRIPLES))).object
-    assert not isinstance(term, Triple)
-    return term
-
-
 def _projection(query: CatalogQuery, plan: ReportPlan, store: Store, rows: KeptRows) -> KeptQuery:
+    unit = plan.unit()
     if plan.is_aggregate:
-        counted = [a for a in plan.aggregates if a.function == "count" and a.distinct]
-        if len(counted) != 1:
-            raise Unsupported("an aggregate report needs one COUNT(DISTINCT ?x) to keep its contributions by")
-        unit = counted[0].argument[1:]
-        inputs = dict.fromkeys([*plan.group_by, counted[0].argument, *(a.argument for a in plan.aggregates)])
+        inputs = dict.fromkeys([*plan.group_by, f"?{unit}", *(a.argument for a in plan.aggregates)])
         text = _before_grouping(query.text, list(inputs))
     else:
-        if len(plan.key) != 1:
-            raise Unsupported("a report's key is one variable")
-        unit = plan.key[0][1:]
         text = query.text
-    layout = Layout(f"report_{re.sub(r'[^a-z0-9]', '_', query.name.lower())}", plan, query.parameters)
+    layout = Layout(f"report_{re.sub(r'[^a-z0-9]', '_', query.name.lower())}", plan, query.parameters, unit)
     # The tables' schema counts too: rows stored in another layout are built again, not read.
     fingerprint = hashlib.sha256("\n".join([PLAN_VERSION, query.text, *layout.schema()]).encode()).hexdigest()
     return KeptQuery(layout, unit, text, fingerprint, store, rows)

@@ -1,0 +1,311 @@
+"""The graph index's facts (links, types, the literals it keeps) and each node's derived row (kind, time, label).
+
+What is drawn: every link between two resources (`rdf:type` gives node types instead) and the literals that name
+and place nodes (`DRAWN_LITERALS`); other literals the index keeps whole for resource summaries
+(`detail_literals`); the rest stay in the store. A node's row is computed again whenever a fact about it, or
+about the activity it borrows its time from, arrives.
+"""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+from collections import defaultdict
+from collections.abc import Collection, Iterable, Iterator, Sequence
+from dataclasses import dataclass
+from datetime import UTC, datetime
+
+from pyoxigraph import Literal, NamedNode, Quad
+
+from segb_server.backend.services.upkeep.terms import CHUNK, TermIds, iri_hash, texts_of
+from segb_server.backend.services.values import iso_time
+from segb_server.backend.vocabulary import KINDS, PREFIXES, Kind, compact, kind_of
+
+RDF_TYPE = PREFIXES["rdf"] + "type"
+# Display name predicates, best first.
+LABELS = [PREFIXES["foaf"] + "firstName", PREFIXES["schema"] + "name", PREFIXES["rdfs"] + "label"]
+TEXT = PREFIXES["schema"] + "text"
+DESCRIPTION = PREFIXES["schema"] + "description"
+INTENSITY = PREFIXES["onyx"] + "hasEmotionIntensity"
+CATEGORY = PREFIXES["onyx"] + "hasEmotionCategory"
+# Own time of a node, best first. Messages and emotions borrow the time of the activity behind them.
+TIMES = [PREFIXES["prov"] + name for name in ("startedAtTime", "endedAtTime", "generatedAtTime")]
+GENERATED_AT = PREFIXES["prov"] + "generatedAtTime"
+WAS_GENERATED_BY = PREFIXES["prov"] + "wasGeneratedBy"
+PRODUCED = PREFIXES["segb"] + "producedEntityResult"
+HAS_EMOTION = PREFIXES["onyx"] + "hasEmotion"
+PROV = PREFIXES["prov"]
+TERMS = "graph_terms"  # the index's table of IRIs (upkeep/terms.py)
+DRAWN_LITERALS = frozenset([*LABELS, TEXT, DESCRIPTION, *TIMES, INTENSITY])
+MAX_LABEL = 60
+UNTIMED = 1 << 62  # the instant of a node without a time: after every real one
+RANK = {kind: index for index, kind in enumerate(KINDS)}
+NO_TYPES = "[]"
+
+
+@dataclass
+class _Derived:
+    kind: Kind
+    time: str | None
+    label: str
+
+
+class Facts:
+    """The writer's side of the index's tables: ids, and the few classes, datatypes and type lists it meets."""
+
+    def __init__(self, kept_literals: frozenset[str]) -> None:
+        self.kept_literals = kept_literals
+        self.terms = TermIds(TERMS)
+        self._typesets: dict[str, int] = {}
+
+    def forget(self) -> None:
+        """The tables were emptied (a build, a clearing): every id made before is gone."""
+        self.terms.forget()
+        self._typesets.clear()
+
+    def store(self, connection: sqlite3.Connection, quads: Iterable[Quad]) -> tuple[set[int], list[tuple[int, int]]]:
+        """Store the drawable facts among `quads` and the kept literals; the ids of the nodes they are about, and
+        the links among them ((source, target) pairs)."""
+        types: list[tuple[str, str]] = []
+        literals: list[tuple[str, str, str, str | None, str | None]] = []
+        links: list[tuple[str, str, str]] = []
+        nodes: set[str] = set()
+        for quad in quads:
+            subject, predicate, value = quad.subject, quad.predicate.value, quad.object
+            if not isinstance(subject, NamedNode):
+                continue
+            if isinstance(value, Literal):
+                if predicate in self.kept_literals:
+                    language = value.language
+                    literals.append(
+                        (subject.value, predicate, value.value, None if language else value.datatype.value, language)
+                    )
+                    if predicate in DRAWN_LITERALS:
+                        nodes.add(subject.value)
+            elif isinstance(value, NamedNode):
+                nodes.add(subject.value)
+                if predicate == RDF_TYPE:
+                    types.append((subject.value, value.value))
+                else:
+                    links.append((subject.value, predicate, value.value))
+                    nodes.add(value.value)
+        named = [*nodes, *(t for _, t in types), *(p for _, p, _ in links), *(p for _, p, _, _, _ in literals)]
+        named += [datatype for *_, datatype, _ in literals if datatype is not None]
+        ids = self.terms.ids(connection, named)
+        connection.executemany(
+            "INSERT OR IGNORE INTO graph_types VALUES (?, ?)", [(ids[n], ids[t]) for n, t in types]
+        )  # fmt: skip
+        connection.executemany(
+            "INSERT INTO graph_literals VALUES (?, ?, ?, ?, ?)",
+            [(ids[n], ids[p], v, None if d is None else ids[d], lang) for n, p, v, d, lang in literals],
+        )
+        linked = [(ids[s], ids[p], ids[o]) for s, p, o in links]
+        connection.executemany("INSERT OR IGNORE INTO graph_links VALUES (?, ?, ?)", linked)
+        empty = self._typeset(connection, NO_TYPES)
+        added = connection.executemany(
+            "INSERT OR IGNORE INTO graph_nodes VALUES (?, ?, ?, ?, NULL, '', NULL, ?)",
+            [(ids[iri], RANK["other"], UNTIMED, tie_of(iri), empty) for iri in nodes],
+        ).rowcount
+        connection.execute("UPDATE graph_state SET nodes = nodes + ?", (added,))
+        return {ids[iri] for iri in nodes}, [(source, target) for source, _, target in linked]
+
+    def borrowers(self, connection: sqlite3.Connection, touched: set[int]) -> set[int]:
+        """Nodes whose time may come from a touched one: what a touched activity produced or generated, and the
+        emotions of what it produced."""
+        produced, has_emotion, generated_by = self._known(connection, [PRODUCED, HAS_EMOTION, WAS_GENERATED_BY])
+        first: set[int] = set()
+        for chunk in chunks(sorted(touched)):
+            marks = ", ".join("?" * len(chunk))
+            first.update(
+                row[0]
+                for row in connection.execute(
+                    f"SELECT target FROM graph_links WHERE source IN ({marks}) AND predicate IN (?, ?) "
+                    f"UNION SELECT source FROM graph_links WHERE target IN ({marks}) AND predicate = ?",
+                    [*chunk, produced, has_emotion, *chunk, generated_by],
+                )
+            )
+        second: set[int] = set()
+        for chunk in chunks(sorted(first - touched)):
+            marks = ", ".join("?" * len(chunk))
+            second.update(
+                row[0]
+                for row in connection.execute(
+                    f"SELECT target FROM graph_links WHERE source IN ({marks}) AND predicate = ?",
+                    [*chunk, has_emotion],
+                )
+            )
+        return first | second
+
+    def derive(self, connection: sqlite3.Connection, nodes: Sequence[int]) -> None:
+        """Compute each node's kind, time and label again from its facts."""
+        drawn = self._known(connection, sorted(DRAWN_LITERALS))
+        predicates = dict(zip(sorted(DRAWN_LITERALS), drawn, strict=True))
+        by_id = {term_id: iri for iri, term_id in predicates.items() if term_id}
+        (category,) = self._known(connection, [CATEGORY])
+        for chunk in chunks(nodes):
+            marks = ", ".join("?" * len(chunk))
+            types: dict[int, set[int]] = defaultdict(set)
+            for node, type_ in connection.execute(
+                f"SELECT node, type FROM graph_types WHERE node IN ({marks})", chunk
+            ):  # fmt: skip
+                types[node].add(type_)
+            type_iris = texts_of(connection, TERMS, {t for found in types.values() for t in found})
+            literals: dict[int, dict[str, str]] = defaultdict(dict)
+            # A name or text: the first one written; a time: the last one.
+            for node, predicate, value in connection.execute(
+                f"SELECT node, predicate, value FROM graph_literals WHERE node IN ({marks}) ORDER BY rowid", chunk
+            ):
+                name = by_id.get(predicate)
+                if name is not None and (name in TIMES or name not in literals[node]):
+                    literals[node][name] = value
+            categories = dict(
+                connection.execute(
+                    f"SELECT l.source, MIN(t.text) FROM graph_links l JOIN graph_terms t ON t.id = l.target "
+                    f"WHERE l.source IN ({marks}) AND l.predicate = ? GROUP BY l.source",
+                    [*chunk, category],
+                )
+            )
+            iris = texts_of(connection, TERMS, chunk)
+            derived: dict[int, _Derived] = {}
+            node_types: dict[int, set[str]] = {}
+            for node in chunk:
+                values = literals.get(node, {})
+                node_types[node] = {type_iris[t] for t in types.get(node, ())}
+                kind = kind_of(node_types[node], timestamped=GENERATED_AT in values)
+                own = next((values[p] for p in TIMES if p in values), None)
+                label = display_label(iris[node], kind, values, categories.get(node))
+                derived[node] = _Derived(kind, normal_time(own), label)
+            borrowing = [node for node, d in derived.items() if d.time is None and d.kind in ("message", "emotion")]
+            for node, time in self._borrowed_times(connection, borrowing).items():
+                derived[node].time = time
+            connection.executemany(
+                "INSERT OR REPLACE INTO graph_nodes VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+                [
+                    (node, RANK[d.kind], instant_of(d.time) if d.time else UNTIMED, tie_of(iris[node]), d.time,
+                     d.label, _folded(d.label),
+                     self._typeset(connection, json.dumps(sorted(compact(t) for t in node_types[node]))))
+                    for node, d in derived.items()
+                ],
+            )  # fmt: skip
+
+    def _borrowed_times(self, connection: sqlite3.Connection, nodes: list[int]) -> dict[int, str]:
+        """The time of the activity behind each message or emotion: the activity that generated it, else what
+        produced it (an activity, or an annotation and the activity that produced that)."""
+        generated_by, produced, has_emotion = self._known(connection, [WAS_GENERATED_BY, PRODUCED, HAS_EMOTION])
+        times = self._known(connection, TIMES)
+        preference = {term_id: index for index, term_id in enumerate(times) if term_id}
+        found: dict[int, str] = {}
+        routes = [
+            # the message -wasGeneratedBy-> activity
+            "SELECT l.source, t.predicate, t.value, t.rowid FROM graph_links l "
+            "JOIN graph_literals t ON t.node = l.target WHERE l.predicate = ? AND l.source IN ({marks}) "
+            "AND t.predicate IN (?, ?, ?)",
+            # activity -producedEntityResult|hasEmotion-> it
+            "SELECT l.target, t.predicate, t.value, t.rowid FROM graph_links l "
+            "JOIN graph_literals t ON t.node = l.source WHERE l.predicate IN (?, ?) AND l.target IN ({marks}) "
+            "AND t.predicate IN (?, ?, ?)",
+            # activity -producedEntityResult-> annotation -hasEmotion-> it
+            "SELECT l2.target, t.predicate, t.value, t.rowid FROM graph_links l2 JOIN graph_links l1 "
+            "ON l1.target = l2.source AND l1.predicate IN (?, ?) JOIN graph_literals t ON t.node = l1.source "
+            "WHERE l2.predicate IN (?, ?) AND l2.target IN ({marks}) AND t.predicate IN (?, ?, ?)",
+        ]
+        for chunk in chunks(nodes):
+            marks = ", ".join("?" * len(chunk))
+            arguments = [
+                [generated_by, *chunk, *times],
+                [produced, has_emotion, *chunk, *times],
+                [produced, has_emotion, produced, has_emotion, *chunk, *times],
+            ]
+            for route, route_arguments in zip(routes, arguments, strict=True):
+                # Per node and time predicate the last value written (as the node's own time), then the best
+                # predicate; between activities, the earliest time.
+                latest: dict[tuple[int, int], tuple[int, str]] = {}
+                for node, predicate, value, order in connection.execute(route.format(marks=marks), route_arguments):
+                    if node not in found and ((node, predicate) not in latest or order > latest[node, predicate][0]):
+                        latest[node, predicate] = (order, value)
+                best: dict[int, tuple[int, str]] = {}
+                for (node, predicate), (_, value) in latest.items():
+                    time = normal_time(value)
+                    if time and (node not in best or (preference[predicate], time) < best[node]):
+                        best[node] = (preference[predicate], time)
+                found.update({node: time for node, (_, time) in best.items()})
+        return found
+
+    def _known(self, connection: sqlite3.Connection, iris: Sequence[str]) -> list[int]:
+        """The ids of vocabulary IRIs (made when missing: the writer's transaction is under way)."""
+        ids = self.terms.ids(connection, iris)
+        return [ids[iri] for iri in iris]
+
+    def _typeset(self, connection: sqlite3.Connection, listed: str) -> int:
+        """The id of a node's type list (a few dozen distinct lists cover thousands of nodes)."""
+        known = self._typesets.get(listed)
+        if known is None:
+            connection.execute("INSERT OR IGNORE INTO graph_typesets (types) VALUES (?)", (listed,))
+            known = connection.execute("SELECT id FROM graph_typesets WHERE types = ?", (listed,)).fetchone()[0]
+            self._typesets[listed] = known
+        return known
+
+
+def display_label(iri: str, kind: Kind, literals: dict[str, str], category: str | None) -> str:
+    """A name for a node: its own name, an emotion's category and intensity, its text, or its IRI's end."""
+    for predicate in LABELS:
+        if predicate in literals:
+            return literals[predicate]
+    if kind == "emotion" and INTENSITY in literals:
+        name = local_name(category).removeprefix("big6_") if category else ""
+        return f"{name} {literals[INTENSITY]}".strip()
+    for predicate in (TEXT, DESCRIPTION):
+        if predicate in literals:
+            text = literals[predicate]
+            return text if len(text) <= MAX_LABEL else text[: MAX_LABEL - 1] + "…"
+    return local_name(iri)
+
+
+def _folded(label: str) -> str | None:
+    """The label as a search compares it (any case), when that differs from the label itself."""
+    folded = label.casefold()
+    return folded if folded != label else None
+
+
+def tie_of(iri: str) -> str:
+    """What orders nodes of one kind and one instant: their IRIs' ends (`robot_ari` before `robot_tiago`), then a
+    hash of the whole IRI (the same end in two namespaces), so an index built afresh and one kept current draw the
+    same nodes in the same order — a few dozen bytes, not the IRI again."""
+    return f"{local_name(iri)[:40]}\x00{iri_hash(iri) & 0xFFFFFFFFFFFFFFFF:016x}"
+
+
+def local_name(iri: str) -> str:
+    return iri.rstrip("/#").replace("#", "/").rsplit("/", 1)[-1] or iri
+
+
+def normal_time(value: str | None) -> str | None:
+    if value is None:
+        return None
+    try:
+        return iso_time(value)
+    except ValueError:
+        return None
+
+
+def instant_of(iso: str) -> int:
+    """A time as microseconds since 1970 in UTC, which sort as the instants do (a time without a zone is
+    taken as UTC)."""
+    moment = datetime.fromisoformat(iso.replace("Z", "+00:00"))
+    if moment.tzinfo is None:
+        moment = moment.replace(tzinfo=UTC)
+    delta = moment - datetime(1970, 1, 1, tzinfo=UTC)
+    return (delta.days * 86_400 + delta.seconds) * 1_000_000 + delta.microseconds
+
+
+def chunks(items: Sequence[int]) -> Iterator[Sequence[int]]:
+    for start in range(0, len(items), CHUNK):
+        yield items[start : start + CHUNK]
+
+
+def typed_literal(value: str, datatype: str | None, language: str | None) -> Literal:
+    return Literal(value, language=language) if language else Literal(value, datatype=NamedNode(datatype or ""))
+
+
+def kept(predicates: Collection[str]) -> frozenset[str]:
+    """The literals an index keeps: those that name and place nodes, and `predicates`."""
+    return DRAWN_LITERALS | frozenset(predicates)

@@ -1,0 +1,1 @@
+"""Audit rules: checks written as files (`rules/`), their findings kept current as robots publish."""

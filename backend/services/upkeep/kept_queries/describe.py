@@ -1,0 +1,75 @@
+"""How one query is kept current, told in words (`segb upkeep REPORT`): what identifies its rows, which of its
+triple patterns a new triple can match and the steps from each back to the rows it changes, how its filters and
+aggregates are served — or why it is evaluated in full on every request."""
+
+from __future__ import annotations
+
+import re
+
+from segb_server.backend.services.sparql.catalog import CatalogQuery
+from segb_server.backend.services.upkeep.kept_queries.facets import facet_patterns
+from segb_server.backend.services.upkeep.kept_queries.keys import chains
+from segb_server.backend.services.upkeep.kept_queries.plan import Unsupported, declared_key, plan_report
+from segb_server.backend.services.upkeep.kept_queries.rows import Layout
+from segb_server.backend.vocabulary import compact
+
+
+def describe(query: CatalogQuery) -> list[str]:
+    """Lines telling how `query` is kept."""
+    if query.same_as is not None:
+        return [
+            f"{query.name}: a preset of {query.same_as} — served from its rows (kept once), its own defaults bound "
+            "when a page is read"
+        ]
+    try:
+        declared_key(query)
+        plan = plan_report(query)
+        unit = plan.unit()
+    except Unsupported as reason:
+        return [f"{query.name}: evaluated in full on every request — {reason}"]
+    layout = Layout("rows", plan, query.parameters, unit)
+    lines = [f"{query.name}: kept as rows, replaced key by key as robots write"]
+    lines += [
+        f"  rows identified by ?{unit}" + (f", grouped by {' '.join(plan.group_by)}" if plan.is_aggregate else "")
+    ]
+    order = plan.group_by if plan.is_aggregate else plan.order
+    lines.append(f"  stored in the order {' '.join(order)} (an index on the sort key; pages are keyset-paged)")
+    for condition in plan.column_filters:
+        column = condition.column[1:]
+        how = (
+            "a range of the sort key's index"
+            if column == layout.sorted_by
+            else f"an index on {condition.column} (with the sort key)"
+        )
+        lines.append(f"  filter {condition.parameter}: {condition.column} {condition.op} ?, from {how}")
+    for facet in plan.facet_filters:
+        lines.append(
+            f"  filter {facet.parameter}: the values each {facet.anchor} has, kept as pairs that only grow: a new "
+            "triple adds the pairs it joins (its pattern bound to it, the rest of the EXISTS joined)"
+        )
+    for aggregate in plan.aggregates:
+        if aggregate.function == "count" and aggregate.argument == f"?{unit}":
+            how = "moved by the keys that join or leave a group"
+        else:
+            how = f"read from an index on ({' '.join(plan.group_by)}, {aggregate.argument})"
+        distinct = "DISTINCT " if aggregate.distinct else ""
+        lines.append(f"  {aggregate.output} = {aggregate.function.upper()}({distinct}{aggregate.argument}): {how}")
+    lines.append("  a new triple matching a pattern changes the rows of the keys these steps reach:")
+    ignored = facet_patterns(plan)
+    for pattern in plan.patterns:
+        if pattern in ignored:
+            continue
+        if f"?{unit}" in pattern.variables():
+            lines.append(f"    {_short(pattern.sparql())}  → holds ?{unit}")
+            continue
+        for chain in chains(plan, pattern, f"?{unit}"):
+            lines.append(f"    {_short(pattern.sparql())}  → from {' '.join(chain.names)}: {_short(chain.steps)}")
+    return lines
+
+
+def _short(sparql: str) -> str:
+    """IRIs of the known namespaces as prefixed names (`<http://schema.org/text>` → `schema:text`)."""
+    return _IRI.sub(lambda found: compact(found.group(1)), sparql)
+
+
+_IRI = re.compile(r"<([^<>\s]+)>")

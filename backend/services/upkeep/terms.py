@@ -1,0 +1,96 @@
+"""Texts (IRIs, terms) as small integers in a view's database: each text is written once, in a table of terms
+(`id`, `hash`, `text`), and every row refers to it by number. A million triples of one robot hold a few hundred
+thousand distinct IRIs, each written dozens of times as the subject or object of a link or in a report's row
+keys and filters: as numbers, a view is a fraction of the size, and a post's new rows land at the end of the
+tables' B-trees instead of at random pages.
+
+A text is found by a 64-bit hash of it (an index of small integers, not of the texts); the text is compared
+too, so two texts sharing a hash stay apart. Ids are made only by the view's writer; readers look them up. A
+view that empties its terms (a build, a clearing) makes its writer forget the ids it remembered.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import sqlite3
+from collections import OrderedDict
+from collections.abc import Collection, Iterable
+
+CHUNK = 400  # values per IN (…) list
+REMEMBERED = 20_000  # ids the writer remembers (each about 200 bytes): the robot, its models, recent nodes
+
+
+def iri_hash(iri: str) -> int:
+    """A stable 64-bit hash (Python's `hash` changes with every process)."""
+    return int.from_bytes(hashlib.blake2b(iri.encode(), digest_size=8).digest(), "big", signed=True)
+
+
+def schema(table: str) -> list[str]:
+    """The statements making a table of terms named `table`."""
+    return [
+        f"CREATE TABLE IF NOT EXISTS {table} (id INTEGER PRIMARY KEY, hash INTEGER NOT NULL, text TEXT NOT NULL)",
+        f"CREATE INDEX IF NOT EXISTS {table}_by_hash ON {table} (hash)",
+    ]
+
+
+class TermIds:
+    """The writer's way to ids in the table `table`: remembers the most recently used, makes the missing ones."""
+
+    def __init__(self, table: str, remembered: int = REMEMBERED) -> None:
+        self.table = table
+        self._ids: OrderedDict[str, int] = OrderedDict()
+        self._remembered = remembered
+
+    def forget(self) -> None:
+        self._ids.clear()
+
+    def ids(self, connection: sqlite3.Connection, iris: Iterable[str]) -> dict[str, int]:
+        """The id of each text, made for those the table does not hold yet (inside the writer's transaction)."""
+        found: dict[str, int] = {}
+        missing: list[str] = []
+        for iri in dict.fromkeys(iris):
+            known = self._ids.get(iri)
+            if known is None:
+                missing.append(iri)
+            else:
+                self._ids.move_to_end(iri)
+                found[iri] = known
+        if missing:
+            stored = lookup(connection, self.table, missing)
+            new = [iri for iri in missing if iri not in stored]
+            if new:
+                connection.executemany(
+                    f"INSERT INTO {self.table} (hash, text) VALUES (?, ?)", [(iri_hash(iri), iri) for iri in new]
+                )
+                stored.update(lookup(connection, self.table, new))
+            found.update(stored)
+            for iri in missing:
+                self._ids[iri] = stored[iri]
+            while len(self._ids) > self._remembered:
+                self._ids.popitem(last=False)
+        return found
+
+
+def lookup(connection: sqlite3.Connection, table: str, iris: Collection[str]) -> dict[str, int]:
+    """The ids of those texts the table holds (a reader's way: nothing is made)."""
+    wanted = set(iris)
+    found: dict[str, int] = {}
+    hashes = sorted({iri_hash(iri) for iri in wanted})
+    for start in range(0, len(hashes), CHUNK):
+        chunk = hashes[start : start + CHUNK]
+        marks = ", ".join("?" * len(chunk))
+        for term_id, iri in connection.execute(f"SELECT id, text FROM {table} WHERE hash IN ({marks})", chunk):
+            if iri in wanted:
+                found[iri] = term_id
+    return found
+
+
+def texts_of(connection: sqlite3.Connection, table: str, ids: Collection[int]) -> dict[int, str]:
+    """The text of each id."""
+    found: dict[int, str] = {}
+    listed = list(ids)
+    for start in range(0, len(listed), CHUNK):
+        chunk = listed[start : start + CHUNK]
+        marks = ", ".join("?" * len(chunk))
+        found.update(connection.execute(f"SELECT id, text FROM {table} WHERE id IN ({marks})", chunk).fetchall())
+    return found

@@ -1,0 +1,171 @@
+"""A post's upkeep does the same work whatever the robot did before: one robot whose history never stops growing
+(a hub every post touches) must not make the views' work per post grow with it.
+
+Work is counted, not timed: the store's queries and the rows they answer, and the SQLite virtual machine's
+steps on each view's database, for the same kind of post after a short history and after one four times
+longer. Two shapes of one robot: a receptionist meeting a new visitor each time (the robot's node gains
+activities, people, shared events), and the emotion mirror talking to the same person all along (one pair of
+robot and person whose aggregates grow).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from datetime import UTC, datetime, timedelta
+from pathlib import Path
+from typing import Any
+
+import pytest
+from pyoxigraph import Quad, RdfFormat, parse
+from rdflib import Graph
+
+from segb_server.backend.config import PACKAGE_ROOT
+from segb_server.backend.services.explain.service import TOLD_LITERALS
+from segb_server.backend.services.graph.index import GraphIndex
+from segb_server.backend.services.sparql.catalog import Catalog
+from segb_server.backend.services.upkeep.delta import Delta
+from segb_server.backend.services.upkeep.kept_queries.projection import KeptQueries
+from segb_server.backend.services.upkeep.kept_queries.rows import KeptRows
+from segb_server.backend.store.base import QueryResult
+from segb_server.backend.store.oxigraph import OxigraphStore
+from segb_server.examples.emotion_mirror.mission import EmotionMirrorMission, RobotConfig
+from segb_server.examples.receptionist import log_visit, receptionist
+
+T0 = datetime(2026, 1, 5, 8, 0, tzinfo=UTC)
+# Posts before the measured ones: past a few hundred, so the first view of the graph (its 1,500 first nodes, which
+# every post's new people may enter) is full after both histories, and four times longer.
+SHORT, LONG = 250, 1000
+MEASURED = 6  # posts measured after each history
+STEPS_PER_TICK = 100  # SQLite virtual machine steps per progress tick
+# What a post may cost more after a four times longer history: a few more rows where a post joins a name or a
+# count that is already there, never a factor of the history.
+ALLOWED = 1.3
+
+
+class CountingStore(OxigraphStore):
+    """The embedded store, counting the queries the views ask and the rows it answers them."""
+
+    def __init__(self, path: Path) -> None:
+        super().__init__("http://amor-segb/events", path)
+        self.queries = 0
+        self.rows = 0
+
+    def query(self, sparql: str, bindings: Any = None, timeout: float | None = None) -> QueryResult:
+        self.queries += 1
+        self.rows += len(list(super().query(sparql, bindings, timeout)))  # type: ignore[arg-type]
+        return super().query(sparql, bindings, timeout)  # asked again: the views read their own answer
+
+
+@dataclass
+class Work:
+    queries: int = 0
+    rows: int = 0
+    steps: dict[str, int] = field(default_factory=dict)  # view → SQLite steps (in ticks of STEPS_PER_TICK)
+
+
+@dataclass
+class Views:
+    store: CountingStore
+    kept: list[Any]
+    ticks: dict[str, int]
+    applied: int = 0
+
+    def history(self, posts: Sequence[Sequence[Quad]]) -> None:
+        """The robot's history in the store, and every view built from it."""
+        for quads in posts:
+            self.applied += 1
+            self.store.apply(quads, self.applied)
+        for view in self.kept:
+            view.build(self.applied)
+
+    def post(self, quads: Sequence[Quad]) -> None:
+        self.applied += 1
+        self.store.apply(quads, self.applied)
+        delta = Delta.of(quads)
+        for view in self.kept:
+            view.update(delta, self.applied)
+
+    def measure(self, posts: Sequence[Sequence[Quad]]) -> Work:
+        self.store.queries = self.store.rows = 0
+        for name in self.ticks:
+            self.ticks[name] = 0
+        for quads in posts:
+            self.post(quads)
+        return Work(self.store.queries, self.store.rows, dict(self.ticks))
+
+
+def kept_views(tmp_path: Path) -> Views:
+    store = CountingStore(tmp_path / "store")
+    reports = KeptQueries(store, KeptRows(tmp_path / "reports.sqlite3"))
+    for query in Catalog(PACKAGE_ROOT / "sparql").under("reports"):
+        reports.add(query)
+    index = GraphIndex(store, tmp_path / "graph.sqlite3", detail_literals=TOLD_LITERALS)
+    ticks = {"reports": 0, "graph": 0}
+    for name, database in (("reports", reports.rows.db), ("graph", index.db)):
+        database.writer().set_progress_handler(_counter(ticks, name), STEPS_PER_TICK)
+    return Views(store, [*reports.views(), index], ticks)
+
+
+def _counter(ticks: dict[str, int], name: str) -> Callable[[], int]:
+    def tick() -> int:
+        ticks[name] += 1
+        return 0  # go on
+
+    return tick
+
+
+def receptionist_posts(count: int) -> list[list[Quad]]:
+    """`count` visits of one robot, each post what that visit added (a new visitor each time)."""
+    logger = receptionist()
+    seen: set[tuple[Any, ...]] = set()
+    posts = [_new(logger.graph, seen)]
+    for index in range(count):
+        logger.graph = Graph()  # each visit logged apart: what it adds is then a small graph to read
+        log_visit(logger, index, T0 + timedelta(seconds=7 * index))
+        posts.append(_new(logger.graph, seen))
+    return posts
+
+
+def mirror_posts(count: int) -> list[list[Quad]]:
+    """`count` interactions of the emotion mirror with the same person, each interaction's three events one post."""
+    config = RobotConfig(robot_id="mirror", base_namespace="https://example.org/segb/robots/mirror/v1/")
+    mission = EmotionMirrorMission.start(config, human_id="maria", human_name="Maria")
+    seen: set[tuple[Any, ...]] = set()
+    posts = [_new(mission.logger.graph, seen)]
+    expressions = ["happy", "sad", "angry", "surprised"]
+    for index in range(count):
+        mission.logger.graph = Graph()
+        at = T0 + timedelta(seconds=20 * index)
+        mission.on_face_expression(expressions[index % len(expressions)], at)
+        exchange = mission.on_user_utterance(f"Utterance {index}", at + timedelta(seconds=1))
+        mission.respond(exchange, at + timedelta(seconds=3))
+        posts.append(_new(mission.logger.graph, seen))
+    return posts
+
+
+def _new(graph: Graph, seen: set[tuple[Any, ...]]) -> list[Quad]:
+    """The triples of `graph` not posted before, as a post of the robot's client would add them."""
+    new = Graph()
+    for triple in graph:
+        if triple not in seen:
+            seen.add(triple)
+            new.add(triple)
+    return list(parse(new.serialize(format="nt").encode(), RdfFormat.N_TRIPLES))
+
+
+@pytest.mark.parametrize("shape", [receptionist_posts, mirror_posts], ids=["new-visitors", "same-person"])
+def test_a_posts_upkeep_work_does_not_grow_with_the_robots_history(
+    tmp_path: Path, shape: Callable[[int], list[list[Quad]]]
+) -> None:
+    posts = shape(LONG + 2 * MEASURED)
+    short, long = kept_views(tmp_path / "short"), kept_views(tmp_path / "long")
+    short.history(posts[: 1 + SHORT])
+    long.history(posts[: 1 + LONG])
+    # The same kind of post on both: the next ones after each history.
+    after_short = short.measure(posts[1 + SHORT : 1 + SHORT + MEASURED])
+    after_long = long.measure(posts[1 + LONG : 1 + LONG + MEASURED])
+    assert after_long.queries <= after_short.queries, (after_short, after_long)
+    assert after_long.rows <= after_short.rows * ALLOWED, (after_short, after_long)
+    for view, steps in after_short.steps.items():
+        assert after_long.steps[view] <= steps * ALLOWED + 2, (view, after_short, after_long)
