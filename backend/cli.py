@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 from pydantic import ValidationError
 from tqdm import tqdm
 
+from segb_server.backend import cli_evidence, cli_people
 from segb_server.backend.config import Settings
 from segb_server.backend.services.errors import ServiceError
 from segb_server.backend.state.database import StateUnavailable
@@ -82,11 +83,14 @@ def _parser() -> argparse.ArgumentParser:
     load.add_argument("files", nargs="+", type=Path, metavar="FILE", help="a .ttl or .nt file (several may follow)")
     load.set_defaults(handler=_import)
 
-    export = commands.add_parser("export", help="write the events graph out (streamed)")
+    export = commands.add_parser("export", help="write the events graph out (streamed), or one person's data")
     _store_options(export)
     export.add_argument(
-        "--format", choices=["turtle", "ntriples", "nquads", "jsonld"], default="turtle", help="syntax (default turtle)"
+        "--format",
+        choices=["turtle", "ntriples", "nquads", "jsonld", "html"],
+        help="syntax (default turtle; with --human also html, a page to read, the default there)",
     )
+    export.add_argument("--human", metavar="IRI", help="only what is held about this person (GDPR Art. 15)")
     export.add_argument("--output", "-o", type=Path, help="file to write (default: standard output)")
     export.set_defaults(handler=_export)
 
@@ -108,6 +112,19 @@ def _parser() -> argparse.ArgumentParser:
     token.add_argument("--allow-weak-secret", action="store_true", help="accept a secret under 32 characters")
     token.add_argument("--json", action="store_true", help="print token, username, roles, scopes, exp as JSON")
     token.set_defaults(handler=_token)
+
+    cli_people.add_erase(commands, _store_options)
+    commands.choices["erase"].set_defaults(handler=_erase)
+    cli_people.add_retention(commands, _store_options)
+    commands.choices["retention"].set_defaults(
+        handler=lambda args: cli_people.retention(args, _settings(args, "retention_days"), _services)
+    )
+    cli_evidence.add_commands(commands, _store_options)
+    commands.choices["evidence"].set_defaults(
+        handler=lambda args: cli_evidence.evidence(args, _settings(args), _services)
+    )
+    commands.choices["evidence-key"].set_defaults(handler=lambda args: cli_evidence.evidence_key(args, _settings(args)))
+    commands.choices["verify-evidence"].set_defaults(handler=cli_evidence.verify_evidence)
 
     check = commands.add_parser(
         "check", help="run the audit rules on a log file, offline (exit code 1 when a rule finds a violation)"
@@ -364,15 +381,24 @@ def _services(settings: Settings) -> Iterator[Services]:
         store.close()
 
 
+def _erase(args: argparse.Namespace) -> int:
+    return cli_people.erase(args, _settings(args), _services)
+
+
 def _export(args: argparse.Namespace) -> int:
     from segb_server.backend.services.formats import EXPORTS, by_name
     from segb_server.backend.services.graph.export import stream_graph
     from segb_server.backend.store.factory import open_store
 
+    if args.human is not None:
+        args.format = args.format or "html"
+        return cli_people.export_person(args, _settings(args), _services)
+    if args.format == "html":
+        return _fail("--format html is a person's page: add --human IRI")
     settings = _settings(args)
     store = open_store(settings)
     try:
-        chunks = stream_graph(store, by_name(EXPORTS, args.format))
+        chunks = stream_graph(store, by_name(EXPORTS, args.format or "turtle"))
         if args.output is None:
             for chunk in chunks:
                 sys.stdout.buffer.write(chunk)

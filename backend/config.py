@@ -14,6 +14,9 @@ PACKAGE_ROOT = Path(__file__).resolve().parent.parent
 StoreKind = Literal["oxigraph", "memory", "virtuoso", "sparql"]
 
 MIN_SECRET_LENGTH = 32
+# The AI Act asks deployers of high-risk AI systems (emotion recognition is one, Annex III) to keep the logs they
+# generate automatically for at least six months (Art. 19 and 26(6)).
+MIN_RETENTION_DAYS = 183
 
 
 class Settings(BaseSettings):
@@ -81,6 +84,18 @@ class Settings(BaseSettings):
         True,
         description="Keep the reports' rows and the graph index current as robots write; false: reports are "
         "evaluated by their queries on every request and /graph answers 503 (to measure what keeping them costs).",
+    )
+    retention_days: int | None = Field(
+        None,
+        ge=1,
+        description="Days robots' posts are kept; older posts lose their content by an erasure (receipts and "
+        "erasure records stay); empty = kept forever. At least 183 (six months) unless ALLOW_SHORT_RETENTION.",
+    )
+    allow_short_retention: bool = Field(
+        False, description="Accept RETENTION_DAYS under 183 (when the AI Act's six months do not apply)."
+    )
+    retention_check_seconds: float = Field(
+        3600.0, gt=0, description="How often the server erases posts older than RETENTION_DAYS."
     )
     skolem_base: str = Field(
         "",
@@ -180,6 +195,11 @@ class Settings(BaseSettings):
             raise ValueError("must be empty (SQLite in DATA_DIR) or a postgresql:// URL")
         return value
 
+    @field_validator("retention_days", mode="before")
+    @classmethod
+    def _empty_is_forever(cls, value: object) -> object:
+        return None if isinstance(value, str) and not value.strip() else value
+
     @field_validator("log_level")
     @classmethod
     def _known_level(cls, value: str) -> str:
@@ -194,6 +214,17 @@ class Settings(BaseSettings):
             raise ValueError(
                 f"SECRET_KEY must be at least {MIN_SECRET_LENGTH} characters "
                 "(set ALLOW_WEAK_SECRET=true to accept a weaker one)"
+            )
+        return self
+
+    @model_validator(mode="after")
+    def _retention_floor(self) -> Settings:
+        days = self.retention_days
+        if days is not None and days < MIN_RETENTION_DAYS and not self.allow_short_retention:
+            raise ValueError(
+                f"RETENTION_DAYS={days} is shorter than six months ({MIN_RETENTION_DAYS} days): the AI Act (Art. 19 "
+                "and 26(6)) asks that the logs of a high-risk AI system, such as emotion recognition, be kept at "
+                "least that long; set ALLOW_SHORT_RETENTION=true if that obligation does not apply to you"
             )
         return self
 

@@ -388,15 +388,26 @@ def write_report(f: Figures, path: Path) -> None:
         *(line for note in getattr(f, "added_runs", []) for line in (note, "")),
     ]
     kept = kept_sections(path)
-    path.write_text("\n".join(header + _sections(f) + kept) + "\n", encoding="utf-8")
+    path.write_text("\n".join(header + _sections(f) + kept) + "\n" + _own_commands(path), encoding="utf-8")
 
 
 # A section another bench command writes (`<!-- section: name -->` … `<!-- /section: name -->`, e.g.
 # bench/timeline.py's): kept as it is when this page is written again.
 _KEPT = re.compile(r"<!-- section: (\S+) -->.*?<!-- /section: \1 -->", re.S)
+OWN_COMMANDS = "## Measured by their own commands"
 
 
 def kept_sections(path: Path) -> list[str]:
+    """The marked sections above the page's last part (which `_own_commands` keeps whole)."""
     if not path.exists():
         return []
-    return [line for match in _KEPT.finditer(path.read_text(encoding="utf-8")) for line in ("", match.group(0))]
+    text = path.read_text(encoding="utf-8").split("\n" + OWN_COMMANDS + "\n", 1)[0]
+    return [line for match in _KEPT.finditer(text) for line in ("", match.group(0))]
+
+
+def _own_commands(path: Path) -> str:
+    """The page's last part, written from benches that run on their own (`python -m bench.people`): kept as it
+    is when the sections above are written again."""
+    text = path.read_text(encoding="utf-8") if path.exists() else ""
+    start = text.find("\n" + OWN_COMMANDS + "\n")
+    return "" if start < 0 else text[start:]

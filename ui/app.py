@@ -30,6 +30,7 @@ from segb_server.ui.routes import (
     ledger,
     live,
     logs,
+    people,
     query,
     reports,
     session,
@@ -57,6 +58,7 @@ ROUTERS = [
     export.router,
     live.router,
     logs.router,
+    people.router,
 ]
 
 

@@ -30,6 +30,7 @@ NAVIGATION: list[tuple[str, str, tuple[str, ...] | None]] = [
     ("Ledger", "/ledger", AUDITOR),
     ("Insert a log", "/logs/insert", ADMIN),
     ("Clear the graph", "/logs/delete", ADMIN),
+    ("People", "/people", ADMIN),
     ("Logs", "/logs", ADMIN),
     ("Health", "/health", None),
     ("Session", "/session", None),

@@ -21,6 +21,14 @@ HEADER = b"x-request-id"
 SAFE_REQUEST_ID = re.compile(r"[A-Za-z0-9._-]{1,64}")
 
 
+def logged_path(path: str) -> str:
+    """The path as the log writes it: a person's IRI in the path (`/humans/{iri}/export`) is left out, so the
+    log never names someone an erasure must forget."""
+    if path.startswith("/humans/") and path != "/humans/erase":
+        return "/humans/{iri}/" + path.rstrip("/").rsplit("/", 1)[-1]
+    return path
+
+
 def request_id_from(headers: list[tuple[bytes, bytes]]) -> str:
     for name, value in headers:
         if name.lower() == HEADER:
@@ -61,7 +69,7 @@ class RequestContext:
             fields = {
                 "request_id": request_id,
                 "method": scope["method"],
-                "path": scope["path"],  # never the query string: it may hold a query or a token
+                "path": logged_path(scope["path"]),  # never the query string: it may hold a query or a token
                 "status": status,
                 "duration_ms": round((time.perf_counter() - started) * 1000, 1),
                 "user": getattr(principal, "username", None),

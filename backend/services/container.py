@@ -5,12 +5,19 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from segb_server.backend.config import Settings
+from segb_server.backend.services.evidence.bundle import WINDOW, EvidenceService
+from segb_server.backend.services.evidence.key import ServerKey
 from segb_server.backend.services.explain.service import TOLD_LITERALS, ExplainService
 from segb_server.backend.services.graph.index import GraphIndex
 from segb_server.backend.services.graph.service import GraphService
 from segb_server.backend.services.ingest.service import IngestService
 from segb_server.backend.services.ops.result_cache import DataVersion, ResultCache
 from segb_server.backend.services.ops.server_log import ServerLog
+from segb_server.backend.services.people.erasure import RULE as ERASURE_RULE
+from segb_server.backend.services.people.erasure import ErasureService
+from segb_server.backend.services.people.export import STORY, PersonExport
+from segb_server.backend.services.people.places import forgetting
+from segb_server.backend.services.people.retention import Retention
 from segb_server.backend.services.reports.service import FOLDER as REPORTS_FOLDER
 from segb_server.backend.services.reports.service import ReportService
 from segb_server.backend.services.rules.catalog import RuleCatalog
@@ -33,9 +40,17 @@ from segb_server.backend.services.writing.write_path import WritePath
 from segb_server.backend.state.opening import open_state
 from segb_server.backend.store.base import Store
 
-# What the reports, the timeline, the graph explorer and the explanations run; without them the server must not
-# start.
-REQUIRED_QUERIES = ("reports/", f"{TIMELINE_FOLDER}/", "graph/resource-in", "graph/resource-out")
+# What the reports, the timeline, the graph explorer, the explanations and people's data run; without them the
+# server must not start.
+REQUIRED_QUERIES = (
+    "reports/",
+    f"{TIMELINE_FOLDER}/",
+    "graph/resource-in",
+    "graph/resource-out",
+    ERASURE_RULE,
+    STORY,
+    WINDOW,
+)
 # Stores written only through this server (the journal's applier), whose cached results a write invalidates.
 OWNED_STORES = {"oxigraph", "memory"}
 REPORTS_FILE = "reports.sqlite3"  # the reports' rows, kept current; rebuilt from the store when missing
@@ -60,14 +75,22 @@ class Services:
     shared_context: SharedContextService
     queries: QueryRunner
     timeline_rows: KeptQueries  # the timeline's kinds kept as rows (its live stream reads their changes)
+    erasure: ErasureService
+    people_export: PersonExport
+    evidence: EvidenceService
+    retention: Retention | None = None  # with RETENTION_DAYS: erases what is past it, on schedule
     server_log: ServerLog | None = None  # the API's own log; None where nothing serves it (the CLI, the demo)
 
     def start(self) -> None:
         """Start the background work of a serving API: applying the journal, keeping the views current (or, when
         another process on this data directory does that, following it)."""
         self.writes.start()
+        if self.retention is not None:
+            self.retention.start()
 
     def close(self) -> None:
+        if self.retention is not None:
+            self.retention.stop()
         self.writes.close()
         self.graph.close()
         if self.reports.maintainer is not None:
@@ -131,6 +154,22 @@ def build_services(
     graph = GraphService(
         catalog, store, index, wait_ready=lambda timeout: writes.wait_viewed(0, timeout), pending=writes.on_the_way
     )
+    shared_context = SharedContextService.open(
+        Policy.from_settings(settings),
+        open_state(settings.state_url, folder and folder / STATE_FILE, writers="contexts"),
+    )
+    queries = query_runner(
+        store,
+        version,
+        workers=settings.sparql_workers,
+        max_memory_bytes=settings.sparql_max_memory_bytes,
+        snapshots=folder and folder / "snapshots",
+    )
+    view_files = (
+        [folder / name for name in (REPORTS_FILE, GRAPH_FILE, FINDINGS_FILE, SHAPE_FINDINGS_FILE)] if folder else []
+    )
+    places = forgetting(writes.journal, shared_context, queries, server_log, view_files)
+    erasure = ErasureService(store, catalog.get(ERASURE_RULE), writes, places)
     return Services(
         settings=settings,
         store=store,
@@ -149,19 +188,23 @@ def build_services(
         timeline=TimelineService(timeline, kept_timeline.rows.last_change),
         graph=graph,
         explain=ExplainService(graph),
-        shared_context=SharedContextService.open(
-            Policy.from_settings(settings),
-            open_state(settings.state_url, folder and folder / STATE_FILE, writers="contexts"),
-        ),
-        queries=query_runner(
-            store,
-            version,
-            workers=settings.sparql_workers,
-            max_memory_bytes=settings.sparql_max_memory_bytes,
-            snapshots=folder and folder / "snapshots",
+        shared_context=shared_context,
+        queries=queries,
+        erasure=erasure,
+        people_export=PersonExport(store, erasure, catalog.get(STORY)),
+        evidence=EvidenceService(
+            store, writes.journal, catalog.get(WINDOW), ServerKey.at(folder) if folder else ServerKey.in_memory()
         ),
         timeline_rows=kept_timeline,
         server_log=server_log,
+        retention=None
+        if settings.retention_days is None
+        else Retention(
+            erasure,
+            settings.retention_days,
+            settings.retention_check_seconds,
+            lambda: writes.apply_leadership.held,
+        ),
     )
 
 

@@ -62,6 +62,13 @@ EXPORTS = (
     Format("nquads", "application/n-quads", rdf=RdfFormat.N_QUADS, extension="nq"),
     Format("jsonld", "application/ld+json", rdf=RdfFormat.JSON_LD, extension="jsonld"),
 )
+# A person's data (GET /humans/{iri}/export): a page they can read, or RDF.
+PERSON_EXPORTS = (
+    Format("html", "text/html", extension="html"),
+    Format("turtle", "text/turtle", rdf=RdfFormat.TURTLE, extension="ttl"),
+    Format("ntriples", "application/n-triples", rdf=RdfFormat.N_TRIPLES, extension="nt"),
+    Format("jsonld", "application/ld+json", rdf=RdfFormat.JSON_LD, extension="jsonld"),
+)
 TABLES = (
     Format("json", "application/json", extension="json"),
     Format("csv", "text/csv", extension="csv"),

@@ -8,7 +8,7 @@ from collections.abc import Callable, Sequence
 
 from segb_server.backend.state.database import Database
 
-JOURNAL_TABLES = ("receipts", "journal_triples", "journal_state")
+JOURNAL_TABLES = ("receipts", "journal_triples", "journal_state", "erased_triples", "erasure_pending")
 CONTEXT_TABLES = ("contexts", "observations", "aliases", "cases", "rejected_pairs")
 ROWS_PER_INSERT = 200
 

@@ -24,6 +24,9 @@ class StateUnavailable(Exception):
 
 
 class Rows(Protocol):
+    @property
+    def rowcount(self) -> int: ...
+
     def fetchone(self) -> Any: ...
     def fetchall(self) -> list[Any]: ...
     def __iter__(self) -> Iterator[Any]: ...
@@ -109,6 +112,10 @@ class Database(ABC):
 
     def continue_serials(self, table: str) -> None:
         """After rows were inserted with their keys given, make the keys the database assigns follow them."""
+        return None
+
+    def compact(self) -> None:
+        """Leave nothing removed in the database's files where this server can see to it (after an erasure)."""
         return None
 
     def ping(self) -> None:

@@ -14,6 +14,19 @@ from segb_server.backend.state.file_lock import FileLock
 TYPES = {"serial": "INTEGER PRIMARY KEY", "blob": "BLOB", "real": "REAL", "without_rowid": "WITHOUT ROWID"}
 
 
+def vacuum(path: Path) -> None:
+    """Write a SQLite file anew from what it holds, and empty its write-ahead log: rows deleted before (a view
+    built again after an erasure) leave nothing in the file. Another connection may use the file meanwhile."""
+    if not path.exists():
+        return
+    connection = sqlite3.connect(str(path), isolation_level=None, timeout=60)
+    try:
+        connection.execute("VACUUM")
+        connection.execute("PRAGMA wal_checkpoint(TRUNCATE)")
+    finally:
+        connection.close()
+
+
 class SqliteDatabase(Database):
     kind = "sqlite"
 
@@ -34,6 +47,8 @@ class SqliteDatabase(Database):
             # commits to the operating system's cache on a power cut; FULL syncs every commit (slower).
             self._connection.execute("PRAGMA journal_mode=WAL")
             self._connection.execute(f"PRAGMA synchronous={'FULL' if sync_full else 'NORMAL'}")
+            # Freed pages are overwritten: content an erasure removed must not linger in the file.
+            self._connection.execute("PRAGMA secure_delete=ON")
 
     # IMMEDIATE takes SQLite's write lock up front: even a writer of another process cannot interleave.
     begin_writing = "BEGIN IMMEDIATE"
@@ -66,6 +81,13 @@ class SqliteDatabase(Database):
 
     def out_of_space(self, error: BaseException) -> bool:
         return isinstance(error, sqlite3.OperationalError) and ("full" in str(error) or "disk I/O" in str(error))
+
+    def compact(self) -> None:
+        # Freed pages are zeroed (secure_delete); the write-ahead log still holds the old pages until it is
+        # checkpointed and truncated.
+        if self.path is not None:
+            with self._lock:
+                self._connection.execute("PRAGMA wal_checkpoint(TRUNCATE)")
 
     def close(self) -> None:
         with self._lock:

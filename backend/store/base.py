@@ -78,6 +78,11 @@ class Store(Protocol):
         """Add the quads (any graph name is ignored) to the events graph, idempotently, and record that the
         journal is applied through entry `through` (in the same transaction where the store has them)."""
 
+    def remove(self, quads: Sequence[Quad], through: int) -> None:
+        """Remove the quads (as received: the store finds them in its own spelling) from the events graph, keep
+        nothing of them in the store's files where the store can manage that, and record that the journal is
+        applied through `through`. Re-applying is harmless."""
+
     def clear(self, through: int | None = None) -> int:
         """Remove every triple of the events graph (recording `through` as applied, when given); return how
         many there were."""

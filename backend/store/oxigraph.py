@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import queue
+import shutil
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from itertools import islice
@@ -38,7 +39,9 @@ class OxigraphStore:
     def __init__(self, graph_uri: str, path: Path | None = None) -> None:
         self.kind = "oxigraph" if path is not None else "memory"
         self.graph_uri = graph_uri
+        self.path = path
         if path is not None:
+            finish_rewrite(path)
             path.mkdir(parents=True, exist_ok=True)
             try:
                 self._store = OxStore(str(path))
@@ -67,6 +70,37 @@ class OxigraphStore:
             for quad in old:
                 if quad.object != _cursor(through).object:
                     self._store.remove(quad)
+
+    def remove(self, quads: Sequence[Quad], through: int) -> None:
+        """On disk, the store is written anew without the quads: RocksDB and the store's string table keep a
+        removed literal's text in their files otherwise (the store never deletes a string it once held). The
+        copy is made beside the store, its cursor included, and swapped in whole (finish_rewrite), so a crash
+        leaves the old store, erasure not applied, or the new one."""
+        with self._write_lock:
+            gone = set(_spelt_by_the_store(quads))
+            if self.path is None or not gone:
+                for quad in gone:
+                    self._store.remove(quad)
+                self._set_cursor(through)
+                return
+            fresh = self.path.with_name(self.path.name + REWRITING)
+            shutil.rmtree(fresh, ignore_errors=True)
+            copy = OxStore(str(fresh))
+            copy.bulk_extend(quad for quad in self._store if quad not in gone and quad.graph_name != CURSOR_GRAPH)
+            copy.add(_cursor(through))
+            copy.flush()
+            del copy
+            fresh.rename(self.path.with_name(self.path.name + REWRITTEN))
+            self._store = OxStore()  # lets the old files go (readers still holding it keep it open)
+            finish_rewrite(self.path)
+            self._store = OxStore(str(self.path))
+
+    def _set_cursor(self, through: int) -> None:
+        old = self._cursor_quads()
+        self._store.add(_cursor(through))
+        for quad in old:
+            if quad.object != _cursor(through).object:
+                self._store.remove(quad)
 
     def clear(self, through: int | None = None) -> int:
         with self._write_lock:
@@ -123,6 +157,28 @@ class OxigraphStore:
 
 
 _END = object()
+REWRITING = ".rewriting"  # a copy being written (dropped if found at start: the old store is whole)
+REWRITTEN = ".rewritten"  # a finished copy, to be swapped in
+
+
+def finish_rewrite(path: Path) -> None:
+    """Complete or undo a rewrite a crash interrupted: a finished copy replaces the store; an unfinished one goes."""
+    shutil.rmtree(path.with_name(path.name + REWRITING), ignore_errors=True)
+    rewritten = path.with_name(path.name + REWRITTEN)
+    old = path.with_name(path.name + ".old")
+    if rewritten.is_dir():
+        if path.exists():
+            path.rename(old)
+        rewritten.rename(path)
+    shutil.rmtree(old, ignore_errors=True)
+
+
+def _spelt_by_the_store(quads: Sequence[Quad]) -> Iterator[Quad]:
+    """The quads as the store spells them (it keeps typed literals in canonical form: "8.7e-01" as "0.87"), in
+    the default graph."""
+    scratch = OxStore()
+    scratch.extend(Quad(q.subject, q.predicate, q.object, DefaultGraph()) for q in quads)
+    return iter(scratch)
 
 
 def read_on_one_thread(open_quads: Callable[[], Iterator[Quad]], size: int) -> Iterator[list[Quad]]:

@@ -90,13 +90,22 @@ class SparqlHttpStore:
     def apply(self, quads: Sequence[Quad], through: int) -> None:
         # INSERT DATA of a triple the graph holds changes nothing, so re-applying after a crash is harmless;
         # the cursor is written after the triples, so a crash in between only makes them applied twice.
+        self._write_data("INSERT", quads)
+        self._record(through)
+
+    def _write_data(self, operation: str, quads: Sequence[Quad]) -> None:
         graph = f"<{self.graph_uri}>"
         for start in range(0, len(quads), WRITE_BATCH_TRIPLES):
             body = "".join(
                 f"{term_text(q.subject)} {q.predicate} {term_text(q.object)} .\n"
                 for q in quads[start : start + WRITE_BATCH_TRIPLES]
             )
-            self._update(f"INSERT DATA {{ GRAPH {graph} {{\n{body}}} }}")
+            self._update(f"{operation} DATA {{ GRAPH {graph} {{\n{body}}} }}")
+
+    def remove(self, quads: Sequence[Quad], through: int) -> None:
+        # DELETE DATA of a triple the graph lacks changes nothing: a crash before the cursor only repeats it.
+        # The store reads each literal as it did on INSERT DATA, so the triple is found in its own spelling.
+        self._write_data("DELETE", quads)
         self._record(through)
 
     def clear(self, through: int | None = None) -> int:

@@ -60,6 +60,10 @@ REQUIRED_ROLE: dict[tuple[str, str], str | None] = {
     ("GET", "/shared-context/review/pending"): "admin",
     ("POST", "/shared-context/review/{case_id}/accept"): "admin",
     ("POST", "/shared-context/review/{case_id}/reject"): "admin",
+    ("POST", "/humans/erase"): "admin",
+    ("GET", "/humans/{iri}/export"): "admin",
+    ("GET", "/evidence"): "auditor",
+    ("GET", "/.well-known/segb-evidence-key"): PUBLIC,
 }
 # A well-formed request for each route, so an authorised caller is served (a 404 from /explain once the
 # graph has been cleared is an answer, not a refusal).
@@ -85,6 +89,8 @@ REQUESTS: dict[tuple[str, str], dict[str, object]] = {
         "json": {"target_context_uri": "https://gsi.upm.es/segb/shared-events/x"},
     },
     ("POST", "/shared-context/review/{case_id}/reject"): {"path": "/shared-context/review/review_000000000000/reject"},
+    ("POST", "/humans/erase"): {"json": {"iri": "https://example.org/h/nobody", "reason": "request 1"}},
+    ("GET", "/humans/{iri}/export"): {"path": "/humans/https%3A%2F%2Fexample.org%2Fh%2Fnobody/export"},
 }
 
 

@@ -342,3 +342,36 @@ def test_workers_are_refused_where_they_cannot_share(tmp_path: Path, arguments: 
     assert refused.returncode == 2
     assert problem in refused.stderr
     assert not (tmp_path / "leader.lock").exists()  # refused before anything was opened
+
+
+@pytest.mark.parametrize("state", STATES)
+def test_an_erasure_is_one_entry_every_worker_follows(start_workers: object, state: str) -> None:
+    """Erased through whichever worker takes the request, the person is gone from what every worker answers, the
+    chain has one erasure in it, and a re-publish to any worker holds her triples back."""
+    from tests.support.people import INES_SAYS, care_home
+    from tests.support.settle import settle
+
+    server = start_workers(2, state=state)  # type: ignore[operator]
+    visit = care_home()
+    visit.publish_steps(server.url)
+    ines = str(visit.iris["ines"])
+    answer = httpx.post(f"{server.url}/humans/erase", json={"iri": ines, "reason": "request"}, timeout=300)
+    assert answer.status_code == 200, answer.text
+    settle(server.url, timeout=120)
+    answered_by: set[int] = set()
+    for round_number in range(40):
+        request_id = f"erased-{round_number}"
+        stored = httpx.get(f"{server.url}/events", params={"format": "ntriples"}, headers={"X-Request-ID": request_id})
+        assert INES_SAYS[0] not in stored.text and ines not in stored.text
+        rows = httpx.get(f"{server.url}/reports/participants", params={"human": ines}).json()["rows"]
+        assert rows == []
+        answered_by |= processes_serving(server.url, "/events", request_id)
+        if len(answered_by) == 2:
+            break
+    assert len(answered_by) == 2, "one worker answered every read"
+    withheld = sum(post["triples_withheld"] for _ in range(3) for post in visit.publish(server.url))
+    assert withheld == 3 * answer.json()["triples_removed"]
+    receipts = list(all_receipts(server.url))
+    assert [receipt["action"] for receipt in receipts].count("erase") == 1
+    verified = httpx.get(f"{server.url}/ledger/verify", params={"deep": "true"}, timeout=120).json()
+    assert verified["valid"] is True and verified["redactions"] == 1

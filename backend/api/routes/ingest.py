@@ -18,6 +18,11 @@ class IngestResponse(BaseModel):
     log_id: str = Field(description="Identifier of this post (also in the server log and the ledger).")
     triples_received: int = Field(description="Triples in the payload.")
     triples_new: int = Field(description="Triples the store did not have yet; 0 for a pure re-publish.")
+    triples_withheld: int = Field(
+        0,
+        description="Triples an erasure removed that the post sent again: not recorded, so an erased person does not "
+        "come back with a robot's cumulative re-publish (see docs/personal-data.md).",
+    )
     user: str = Field(description="Authenticated identity the post is recorded under.")
     claimed_user: str | None = Field(description="The body's `user` field, as claimed by the client.")
 
@@ -91,6 +96,7 @@ async def publish(
         log_id=result.log_id,
         triples_received=result.triples_received,
         triples_new=result.triples_new,
+        triples_withheld=result.triples_withheld,
         user=principal.username,
         claimed_user=claimed,
     )

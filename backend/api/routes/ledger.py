@@ -3,7 +3,8 @@ received, and a check of the hash chain."""
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+import json
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Query, Request
 from fastapi.concurrency import run_in_threadpool
@@ -15,6 +16,7 @@ from segb_server.backend.api.paging import Offset
 from segb_server.backend.api.responses import FastJSONResponse
 from segb_server.backend.services.formats import Format as MediaFormat
 from segb_server.backend.services.formats import negotiate
+from segb_server.backend.services.writing.receipts import BrokenReason
 
 router = APIRouter(tags=["ledger"])
 
@@ -43,13 +45,19 @@ class LedgerPage(BaseModel):
 class BrokenLinkOut(BaseModel):
     sequence: int
     log_id: str
-    reason: Literal["hash mismatch", "previous hash does not match", "sequence gap", "content does not match"]
+    reason: BrokenReason
 
 
 class VerificationOut(BaseModel):
     valid: bool
     receipts: int = Field(description="Receipts in the ledger.")
     deep: bool | None = Field(None, description="True when every entry's content was hashed again too.")
+    redactions: int | None = Field(
+        None,
+        description="Erasures in the chain (only when there are any): each removed triples from earlier posts and "
+        "is recorded as an entry (who, when, why, which posts); a deep check verifies what remains of those posts "
+        "against it.",
+    )
     first_broken: BrokenLinkOut | None = Field(None, description="Only when the chain is broken.")
 
 
@@ -95,6 +103,7 @@ async def verify_ledger(
         valid=checked.valid,
         receipts=checked.receipts,
         deep=checked.deep or None,
+        redactions=checked.redactions or None,
         first_broken=BrokenLinkOut(sequence=broken.sequence, log_id=broken.log_id, reason=broken.reason)
         if broken
         else None,
@@ -108,7 +117,11 @@ async def verify_ledger(
         "The receipt and its content: the post's new triples exactly as received (original lexical forms, "
         "datatypes and language tags; blank nodes skolemised), as an N-Triples document. JSON "
         "`{receipt, content}` by default; `Accept: application/n-triples` (or `?format=ntriples`) gives the "
-        "document alone, whose SHA-256 is the receipt's `content_sha256`. 404 for an unknown `log_id`."
+        "document alone, whose SHA-256 is the receipt's `content_sha256` (unless an erasure removed triples from it "
+        "since: the receipt's `content_digest` and the erasure's record then verify it). An erasure's entry "
+        "answers `{receipt, content: null, redaction}`: its record (kind, reason, and for each post it redacted "
+        "its `sequence`, `log_id`, `triples_removed` and the `remaining_sha256` of what is left). 404 for an "
+        "unknown `log_id`."
     ),
     responses={200: {"content": {"application/json": {}, "application/n-triples": {}}}, 404: {}},
 )
@@ -117,6 +130,11 @@ async def receipt(
 ) -> Response:
     fmt = negotiate(_CONTENT_FORMATS, request.headers.get("accept"), format, what="a receipt")
     found, content = await run_in_threadpool(services.writes.journal.entry, log_id)
+    if found.action == "erase":  # its content is the erasure's record, not triples
+        record = json.loads(content or b"{}")
+        if fmt.name == "ntriples":
+            return Response(b"", media_type=fmt.media_type)
+        return FastJSONResponse({"receipt": found.public(), "content": None, "redaction": record})
     if fmt.name == "ntriples":
         return Response(content or b"", media_type=fmt.media_type)
     body = {"receipt": found.public(), "content": None if content is None else content.decode("utf-8")}

@@ -57,6 +57,7 @@ class IngestResult:
     triples_new: int
     duration_ms: float
     sequence: int
+    triples_withheld: int = 0  # triples an erasure removed, sent again and not recorded
 
 
 @dataclass(frozen=True)
@@ -116,7 +117,14 @@ class IngestService:
             receipt.log_id, actor, payload.claimed_user, len(payload.data), len(quads), receipt.triples_new,
             duration_ms,
         )  # fmt: skip
-        return IngestResult(receipt.log_id, len(quads), receipt.triples_new, duration_ms, receipt.sequence)
+        withheld = receipt.triples_withheld or 0
+        if withheld:
+            # Said without quoting them: the log must not bring back what was erased.
+            logger.warning(
+                "post log_id=%s actor=%s re-sent %d erased triples; they were not recorded", receipt.log_id, actor,
+                withheld,
+            )  # fmt: skip
+        return IngestResult(receipt.log_id, len(quads), receipt.triples_new, duration_ms, receipt.sequence, withheld)
 
     def delete_all(self, *, actor: str, claimed_user: str | None = None) -> ClearResult:
         receipt = self.journal.append_clear(log_id=str(uuid.uuid4()), user=actor, claimed_user=claimed_user)
@@ -156,7 +164,9 @@ class IngestService:
             self.writes.entries_written()
             return
         try:
-            self.writes.apply_now()
+            # Not waiting for another thread's step: a post then waits INGEST_APPLY_TIMEOUT_SECONDS at most.
+            self.writes.entries_written()
+            self.writes.apply_now(wait=False)
         except OUTAGES as error:
             raise NotYetApplied(
                 f"kept in the journal as log_id {receipt.log_id}, but it could not be applied yet ({error}); it is "

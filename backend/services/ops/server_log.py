@@ -13,11 +13,14 @@ from __future__ import annotations
 import json
 import logging
 import os
+import re
 import threading
 from collections import deque
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Collection, Iterable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, BinaryIO
+from urllib.parse import quote
 
 from segb_server.backend.config import Settings
 from segb_server.backend.services.clock import utc_iso
@@ -28,6 +31,8 @@ LEVELS = ("DEBUG", "INFO", "WARNING", "ERROR", "CRITICAL")
 # Structured fields a record may carry (passed as `extra=` by the request logger and others).
 FIELDS = ("request_id", "user", "origin_ip", "method", "path", "status", "duration_ms", "triples_written", "log_id")
 REQUIRED = ("time", "level", "logger", "message")  # what every entry has; a line without them was not ours
+_REQUEST_ENTRY = '"logger": "segb.requests"'  # as `line_of` writes a request's entry
+_IRI = re.compile(r"https?(?::|%3A)[^\s\"'<>\\]+", re.IGNORECASE)
 RING_ENTRIES = 5000
 
 Entry = dict[str, Any]
@@ -69,13 +74,13 @@ class _JsonLines(logging.Handler):
         self.path = path
         self.max_bytes = max_bytes
         self.backups = backups
-        self._writers = FileLock(path.with_name(f"{path.name}.lock"))
+        self.writers = FileLock(path.with_name(f"{path.name}.lock"))
         self._stream: BinaryIO | None = None
 
     def emit(self, record: logging.LogRecord) -> None:
         try:
             data = (line_of(entry_of(record)) + "\n").encode("utf-8")
-            with self._writers.held():
+            with self.writers.held():
                 stream = self._current()
                 if self.backups and os.fstat(stream.fileno()).st_size + len(data) > self.max_bytes:
                     self._rotate()
@@ -112,7 +117,7 @@ class _JsonLines(logging.Handler):
             if self._stream is not None:
                 self._stream.close()
                 self._stream = None
-            self._writers.close()
+            self.writers.close()
         finally:
             self.release()
         super().close()
@@ -132,6 +137,14 @@ class _Ring(logging.Handler):
     def newest_first(self) -> list[Entry]:
         with self._entries_lock:
             return list(reversed(self.entries))
+
+    def drop(self, unwanted: Callable[[str], bool]) -> int:
+        with self._entries_lock:
+            kept = [entry for entry in self.entries if not unwanted(line_of(entry))]
+            dropped = len(self.entries) - len(kept)
+            self.entries.clear()
+            self.entries.extend(kept)
+        return dropped
 
 
 class ServerLog:
@@ -178,6 +191,58 @@ class ServerLog:
         logging.getLogger(ROOT_LOGGER).removeHandler(self.handler)
         self.handler.close()
 
+    def forget(self, iris: Collection[str], texts: Collection[str]) -> int:
+        """Remove every entry naming one of `iris` or quoting one of `texts` (an erased person's), from the file
+        and its rotations; returns how many went. A request's entry holds only the request's own facts (never a
+        query string, a body, or a person's IRI in its path) and is kept; the others, few, are read: the IRIs
+        they name (as written, or percent-encoded in a URL) looked up, the texts searched for."""
+        wanted = {form for iri in iris for form in (iri, quote(iri, safe=""))}
+        needles = [form for text in texts if text for form in {text, json.dumps(text)[1:-1]}]
+
+        def quotes(line: str) -> bool:
+            if _REQUEST_ENTRY in line:
+                return False
+            if any(found.rstrip(".,;)") in wanted for found in _IRI.findall(line)):
+                return True
+            return any(needle in line for needle in needles)
+
+        return self._drop(quotes)
+
+    def forget_before(self, cutoff: str) -> int:
+        """Remove every entry written before `cutoff` (ISO 8601 UTC): retention."""
+
+        def older(line: str) -> bool:
+            try:
+                return str(json.loads(line).get("time", "")) < cutoff
+            except (ValueError, AttributeError):
+                return False
+
+        return self._drop(older)
+
+    def _drop(self, unwanted: Callable[[str], bool]) -> int:
+        if isinstance(self.handler, _Ring):
+            return self.handler.drop(unwanted)
+        assert isinstance(self.handler, _JsonLines) and self.path is not None
+        dropped = 0
+        # The handler's own lock keeps this process's writers out (the file lock, other processes').
+        with _holding(self.handler), self.handler.writers.held():
+            for index in range(self.backups + 1):
+                path = self.path if index == 0 else self.path.with_name(f"{self.path.name}.{index}")
+                try:
+                    lines = path.read_bytes().decode("utf-8", errors="replace").splitlines(keepends=True)
+                except FileNotFoundError:
+                    continue
+                kept = [line for line in lines if not unwanted(line)]
+                if len(kept) == len(lines):
+                    continue
+                dropped += len(lines) - len(kept)
+                # A new file replaces the old one: writers notice (another inode) and reopen; the old blocks are
+                # the file system's, no longer any file's.
+                fresh = path.with_name(path.name + ".forgetting")
+                fresh.write_text("".join(kept), encoding="utf-8")
+                fresh.replace(path)
+        return dropped
+
     def read(self, limit: int, level: str = "DEBUG", contains: str | None = None) -> list[Entry]:
         """Up to `limit` entries at `level` or above whose text holds `contains` (any case), newest first, with
         the reference's field names too; blocking file reads, so call it off the event loop."""
@@ -208,6 +273,15 @@ class ServerLog:
             except FileNotFoundError:
                 continue
             yield from _parsed(reversed(lines))
+
+
+@contextmanager
+def _holding(handler: logging.Handler) -> Iterator[None]:
+    handler.acquire()
+    try:
+        yield
+    finally:
+        handler.release()
 
 
 def _parsed(lines: Iterable[str]) -> Iterator[tuple[Entry, str]]:

@@ -120,6 +120,11 @@ class ShapeFindings:
             connection.execute("DELETE FROM shape_findings")
             self._set_state(connection, through)
 
+    def forget_erased(self) -> None:
+        """An erasure: the change log names the nodes it concerned (erased ones among them)."""
+        with self.db.writing() as connection:
+            connection.execute("DELETE FROM shape_changes")
+
     # --- checking ------------------------------------------------------------------------------------
 
     def _check(self, rule: ShapeRule, named: set[str] | None) -> tuple[set[str], dict[str, list[Record]]]:

@@ -211,6 +211,20 @@ class SharedContextService:
             state.save_case(case)
         return Decision(case_id, "rejected", case.source_uri, None, None)
 
+    def forget(self, iris: set[str], texts: set[str]) -> int:
+        """An erasure: every context and observation naming one of `iris` or quoting one of `texts` goes."""
+        with self.state.transaction() as state:
+            removed = state.forget(iris, texts)
+        self.state.compact()
+        return removed
+
+    def forget_before(self, cutoff: str) -> int:
+        """Retention: observations recorded before `cutoff` go, and contexts left without any."""
+        with self.state.transaction() as state:
+            removed = state.forget_before(cutoff)
+        self.state.compact()
+        return removed
+
     def stats(self) -> dict[str, int]:
         with self.state.snapshot() as state:
             counts = state.count_by_status()

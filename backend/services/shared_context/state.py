@@ -4,6 +4,7 @@ time across every process sharing it."""
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import astuple, dataclass, fields
@@ -129,6 +130,9 @@ class ContextState:
 
     def close(self) -> None:
         self._db.close()
+
+    def compact(self) -> None:
+        self._db.compact()
 
     # --- contexts ------------------------------------------------------------------------------------
 
@@ -259,9 +263,66 @@ class ContextState:
             "INSERT INTO rejected_pairs (source, candidate) VALUES (?, ?) ON CONFLICT DO NOTHING", (source, candidate)
         )
 
+    # --- forgetting ----------------------------------------------------------------------------------
+
+    def forget(self, iris: set[str], texts: set[str]) -> int:
+        """Remove every observation, context, alias and review case naming one of `iris` (a person erased, their
+        shared events) or quoting one of `texts`; returns the rows removed. In the caller's transaction."""
+        removed = 0
+        for chunk in _chunks(sorted(iris)):
+            marks = ", ".join(["?"] * len(chunk))
+            for sql in _FORGET_BY_IRI:
+                statement = sql.format(marks)
+                removed += self._db.execute(statement, chunk * statement.count("(" + marks)).rowcount or 0
+        # A case's candidates are JSON: read as text here (a LIKE pattern would need the IRI escaped for each SQL).
+        naming = [
+            case_id
+            for case_id, candidates in self._db.execute("SELECT case_id, candidates FROM cases").fetchall()
+            if not iris.isdisjoint(_QUOTED.findall(str(candidates)))
+        ]
+        for case_id in naming:
+            removed += self._db.execute("DELETE FROM cases WHERE case_id = ?", (case_id,)).rowcount or 0
+        for chunk in _chunks(sorted(texts)):
+            marks = ", ".join(["?"] * len(chunk))
+            for sql in _FORGET_BY_TEXT:
+                removed += self._db.execute(sql.format(marks), chunk).rowcount or 0
+        return removed
+
+    def forget_before(self, cutoff: str) -> int:
+        """Remove observations recorded before `cutoff` (ISO 8601 UTC), and contexts left with none."""
+        removed = self._db.execute("DELETE FROM observations WHERE recorded_at < ?", (cutoff,)).rowcount or 0
+        removed += (
+            self._db.execute(
+                "DELETE FROM contexts WHERE updated_at < ? AND uri NOT IN (SELECT context_uri FROM observations)",
+                (cutoff,),
+            ).rowcount
+            or 0
+        )
+        return removed
+
     def rejected_candidates(self, source: str) -> set[str]:
         rows = self._db.execute("SELECT candidate FROM rejected_pairs WHERE source = ?", (source,))
         return {row[0] for row in rows}
+
+
+# Everything that can name a person or one of their shared events (a case's candidates too, read in `forget`).
+_FORGET_BY_IRI = (  # `{}`: the chunk's placeholders
+    "DELETE FROM observations WHERE subject IN ({0}) OR context_uri IN ({0}) OR observation_uri IN ({0})",
+    "DELETE FROM contexts WHERE subject IN ({0}) OR uri IN ({0})",
+    "DELETE FROM aliases WHERE source IN ({0}) OR target IN ({0})",
+    "DELETE FROM cases WHERE source_uri IN ({0}) OR selected_uri IN ({0})",
+    "DELETE FROM rejected_pairs WHERE source IN ({0}) OR candidate IN ({0})",
+)
+_FORGET_BY_TEXT = (
+    "DELETE FROM observations WHERE text IN ({})",
+    "DELETE FROM contexts WHERE canonical_text IN ({})",
+)
+_QUOTED = re.compile(r'"([^"]+)"')  # every string of a case's candidates (JSON)
+_CHUNK = 300  # values per statement: three IN lists of this stay under SQLite's 32,766 parameters
+
+
+def _chunks(values: list[str]) -> list[list[str]]:
+    return [values[start : start + _CHUNK] for start in range(0, len(values), _CHUNK)]
 
 
 def _case(row: tuple[object, ...]) -> Case:

@@ -55,6 +55,10 @@ class QueryRunner(Protocol):
     def close(self) -> None:
         """Stop what the runner started."""
 
+    def forget(self) -> None:
+        """Drop every copy of the data made for users' queries (after an erasure): the next query takes a new
+        one."""
+
 
 class InStoreRunner:
     """Runs the query through the store adapter, in the calling thread (for remote stores)."""
@@ -67,6 +71,9 @@ class InStoreRunner:
 
     def close(self) -> None:
         pass
+
+    def forget(self) -> None:
+        pass  # queries run on the store itself
 
 
 @dataclass
@@ -124,6 +131,18 @@ class IsolatedRunner:
             self._idle = []
             for snapshot in [*self._retired, *([self._current] if self._current else [])]:
                 _delete(snapshot)
+
+    def forget(self) -> None:
+        """Retire the current snapshot and delete every one no query is reading; the workers holding one open
+        are ended (the files stay readable to a process that has them open, never under DATA_DIR)."""
+        with self._lock:
+            if self._current is not None:
+                self._retired.append(self._current)
+                self._current = None
+            for worker in self._idle:
+                _end(worker)
+            self._idle = []
+            self._prune()
 
     def _ask(self, worker: _Worker, snapshot: _Snapshot, text: str, limits: QueryLimits) -> Answer:
         first_time = worker.snapshot != snapshot.key

@@ -28,7 +28,7 @@ import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 from pyoxigraph import Quad
 
@@ -85,6 +85,14 @@ class KeptView(Protocol):
     def prepared(self) -> None:
         """The view was built or caught up at start, and answers from now on (a view may get ready to answer
         its first request here)."""
+
+
+@runtime_checkable
+class ForgetsErased(Protocol):
+    """A view that keeps, past a clearing, what an erasure must remove (a table of terms, a change log)."""
+
+    def forget_erased(self) -> None:
+        """Called after every view was cleared for an erasure, before they are built again."""
 
 
 @dataclass
@@ -206,7 +214,7 @@ class ViewKeeper:
         if behind > limit:
             return None
         steps = applied_steps(self.journal.entries_after(applied - behind, behind))
-        if any(step.cleared for step in steps):
+        if any(step.cleared or step.erased for step in steps):
             return None
         return [quad for step in steps for quad in step.quads]
 
@@ -368,7 +376,7 @@ class ViewKeeper:
         if stored >= current:
             return
         entries = self.journal.entries_after(stored, current - stored)
-        if any(entry.action == "delete_all" for entry in entries):
+        if any(entry.action != "ingest" for entry in entries):  # a clearing or an erasure
             self._build(view, current)
             return
         view.update(Delta.of(quads_of(entries)), current)
@@ -381,12 +389,15 @@ class ViewKeeper:
         if first > self.through + 1:  # applied by another process before this one took over: read them back
             steps = [*self._read_back(first), *steps]
         through = steps[-1].entries[-1].sequence
-        cleared = max((index for index, step in enumerate(steps) if step.cleared), default=-1)
+        cleared = max((index for index, step in enumerate(steps) if step.cleared or step.erased), default=-1)
         if cleared >= 0:
             at = steps[cleared].entries[-1].sequence
-            for view in self.views:
-                view.clear(at)
-            steps = steps[cleared + 1 :]
+            if steps[cleared].erased:  # triples went: the views are made again from the store
+                at = self._rebuild_all(at)
+            else:
+                for view in self.views:
+                    view.clear(at)
+            steps = [step for step in steps[cleared + 1 :] if step.entries[-1].sequence > at]
         delta = Delta.of([quad for step in steps for quad in step.quads])  # matched by every view
         updates = [self._workers.submit(view.update, delta, through) for view in self.views]
         for update in updates:  # every one finishes before an error is raised: a retry starts from a quiet state
@@ -394,6 +405,22 @@ class ViewKeeper:
         for update in updates:
             update.result()
         self._advance(through)
+
+    def _rebuild_all(self, erased_at: int) -> int:
+        """After an erasure: every view emptied, then built from the store (which holds at least the journal
+        through `erased_at`); until a view is built again its answers are not served (reports are evaluated by
+        their queries meanwhile), so nothing erased is served from old rows. Returns where the views now are."""
+        current = max(erased_at, self.store.applied_through() or 0)
+        for view in self.views:
+            view.ready = False
+            view.clear(erased_at)
+        for view in self.views:  # what a clearing keeps (tables of terms, change logs) goes too
+            if isinstance(view, ForgetsErased):
+                view.forget_erased()
+        for view in self.views:
+            self._build(view, current)
+            view.ready = True
+        return current
 
     def _advance(self, through: int) -> None:
         self.cursor.advance(through)

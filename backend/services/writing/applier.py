@@ -37,11 +37,14 @@ WAIT_POLL_SECONDS = 0.05  # how often a follower waiting for one entry (INGEST_A
 
 @dataclass(frozen=True)
 class Applied:
-    """What one step applied: its entries, and the triples they added (none for a clearing)."""
+    """What one step applied: its entries, and the triples they added (none for a clearing or an erasure).
+    `erased`: the step was an erasure, which removed triples from the store: a view cannot follow it from the
+    step's triples, and is built again from the store."""
 
     entries: list[JournalEntry]
     quads: list[Quad]
     cleared: bool
+    erased: bool = False
 
 
 Listener = Callable[[Applied], None]
@@ -54,7 +57,10 @@ def quads_of(entries: Sequence[JournalEntry]) -> list[Quad]:
 
 def applied_steps(entries: Sequence[JournalEntry]) -> list[Applied]:
     """Entries read back from the journal as the steps that applied them (one each)."""
-    return [Applied([entry], quads_of([entry]), cleared=entry.action == "delete_all") for entry in entries]
+    return [
+        Applied([entry], quads_of([entry]), cleared=entry.action == "delete_all", erased=entry.action == "erase")
+        for entry in entries
+    ]
 
 
 class Applier:
@@ -139,24 +145,28 @@ class Applier:
         """The entry the store is known to be applied through (0 until first read)."""
         return self.cursor.value
 
-    def apply_pending(self) -> int:
+    def apply_pending(self, *, wait: bool = True) -> int:
         """Apply every entry the journal holds beyond the store's cursor; returns the cursor. Raises
         StoreError when the store fails (nothing is lost: the next call resumes at the cursor). In a process
-        that does not lead, only reads how far the leader applied."""
+        that does not lead, only reads how far the leader applied. Without `wait`, returns at once when another
+        thread is applying (it applies what was appended meanwhile too, or the applier's thread does)."""
         if not self.leadership.try_acquire():
             return self._follow()
-        with self._apply_lock:
-            try:
-                self._read_cursor()
-                while entries := self.journal.entries_after(self.applied, ENTRIES_PER_READ):
-                    for step in self._steps(entries):
-                        self._apply(step)
-            except OUTAGES as error:
-                self._cursor_read = False  # the store may come back restored or wiped: read its cursor again
-                self.last_error = str(error)
-                raise
-            self.last_error = None
+        if not self._apply_lock.acquire(blocking=wait):
             return self.cursor.value
+        try:
+            self._read_cursor()
+            while entries := self.journal.entries_after(self.applied, ENTRIES_PER_READ):
+                for step in self._steps(entries):
+                    self._apply(step)
+        except OUTAGES as error:
+            self._cursor_read = False  # the store may come back restored or wiped: read its cursor again
+            self.last_error = str(error)
+            raise
+        finally:
+            self._apply_lock.release()
+        self.last_error = None
+        return self.cursor.value
 
     def wait_for(self, sequence: int, timeout: float) -> bool:
         """Wait until entry `sequence` is applied (True), or `timeout` seconds passed (False). A follower's
@@ -195,6 +205,17 @@ class Applier:
     def _starting_point(self) -> int:
         cursor = self.store.applied_through()
         head = self.journal.head()
+        erased = self.journal.last_applied_erasure()
+        if cursor is not None and cursor < erased <= head:
+            # A store from before an erasure whose removed lines are no longer kept (a backup restored): it is
+            # brought up again from the redacted journal, so nothing erased stays in it.
+            logger.warning(
+                "the store is applied through entry %d, before erasure %d: applying the journal to it anew",
+                cursor,
+                erased,
+            )
+            self.store.clear(through=None)
+            cursor = None
         if cursor is None or cursor > head:
             if cursor is not None:
                 logger.warning(
@@ -209,12 +230,12 @@ class Applier:
         return cursor
 
     def _steps(self, entries: Sequence[JournalEntry]) -> list[list[JournalEntry]]:
-        """Consecutive posts grouped up to `batch_triples` triples; a clearing is a step of its own."""
+        """Consecutive posts grouped up to `batch_triples` triples; a clearing or an erasure is a step of its own."""
         steps: list[list[JournalEntry]] = []
         current: list[JournalEntry] = []
         size = 0
         for entry in entries:
-            if entry.action == "delete_all":
+            if entry.action != "ingest":  # a clearing or an erasure
                 steps += [current, [entry]] if current else [[entry]]
                 current, size = [], 0
                 continue
@@ -233,6 +254,12 @@ class Applier:
         if entries[0].action == "delete_all":
             self.store.clear(through=through)
             step = Applied(entries, [], cleared=True)
+        elif entries[0].action == "erase":
+            removed = entries[0].removed
+            # Empty once applied: a store restored from before the erasure gets the posts already redacted.
+            self.store.remove(list(parse(removed, RdfFormat.N_TRIPLES)) if removed else [], through)
+            self.journal.erasure_applied(through)
+            step = Applied(entries, [], cleared=False, erased=True)
         else:
             quads = quads_of(entries)
             self.store.apply(quads, through)

@@ -6,6 +6,11 @@ cumulative re-publish costs a membership test per triple and adds nothing. Tripl
 their N-Triples text, original lexical forms and datatypes included. The content is stored as an N-Triples
 document compressed with zlib; the receipt covers its SHA-256.
 
+An erasure (erasure.py) removes lines from posts' content and records what it did as an entry of its own; the
+chain stays whole, since receipts cover digests of their lines, not the lines themselves (redaction.py).
+
+What the journal reads (receipts, entries, posts, verification) is in journal_reads.py.
+
 Kept in the state database (backend/state): SQLite in DATA_DIR by default (its file: journal_file.py), PostgreSQL
 when STATE_URL names one. All work is blocking: async callers use a worker thread.
 """
@@ -18,22 +23,28 @@ import zlib
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
-from datetime import UTC, datetime
 
 from segb_server.backend.services.clock import utc_iso
-from segb_server.backend.services.errors import NotFound, ServiceError
+from segb_server.backend.services.errors import ServiceError
+from segb_server.backend.services.writing.erasure import (
+    Erasure,
+    ErasureDone,
+    candidates,
+    erasure_receipt,
+    forget_digests,
+    redact,
+)
+from segb_server.backend.services.writing.journal_reads import COLUMNS, JournalReads
+from segb_server.backend.services.writing.journal_reads import JournalEntry as JournalEntry  # re-exported
 from segb_server.backend.services.writing.receipts import (
     FIELD_NAMES,
-    GENESIS_HASH,
-    ChainCheck,
     Receipt,
-    Verification,
 )
+from segb_server.backend.services.writing.redaction import RedactionRecord, content_digest
 from segb_server.backend.state.database import Database
 
 EMPTY_SHA256 = hashlib.sha256(b"").hexdigest()
 _ROWS_PER_INSERT = 400  # digests per INSERT statement (SQLite allows 32,766 parameters)
-_ROWS_PER_VERIFY = 1000
 FREE_BYTES_NEEDED = 1 << 20  # below this much free space, readiness reports the journal as not writable
 
 SCHEMA = """
@@ -54,10 +65,20 @@ CREATE TABLE IF NOT EXISTS receipts (
 CREATE INDEX IF NOT EXISTS receipts_by_log_id ON receipts (log_id);
 CREATE TABLE IF NOT EXISTS journal_triples (digest {blob} PRIMARY KEY) {without_rowid};
 CREATE TABLE IF NOT EXISTS journal_state (name TEXT PRIMARY KEY, value BIGINT NOT NULL);
+CREATE TABLE IF NOT EXISTS erased_triples (digest {blob} PRIMARY KEY) {without_rowid};
+CREATE TABLE IF NOT EXISTS erasure_pending (sequence BIGINT PRIMARY KEY, content {blob} NOT NULL);
 """
 # Columns the journal added to the ledger's receipts table; added to an older file on opening (re-runnable).
-ADDED_COLUMNS = {"content_sha256": "TEXT", "content": "{blob}"}
-COLUMNS = ", ".join(f'"{name}"' for name in FIELD_NAMES)  # quoted: `user` is a reserved word in PostgreSQL
+# `redacted_by` (the newest erasure that removed lines of the post) and `redacted_digests` (those lines'
+# digests) are the journal's own notes, outside the receipt's hash: the erasure's record is what covers them.
+ADDED_COLUMNS = {
+    "content_sha256": "TEXT",
+    "content": "{blob}",
+    "content_digest": "TEXT",
+    "triples_withheld": "INTEGER",
+    "redacted_by": "BIGINT",
+    "redacted_digests": "{blob}",
+}
 
 
 class StorageFull(ServiceError):
@@ -79,15 +100,6 @@ class PostEntry:
     digests: list[bytes]
 
 
-@dataclass(frozen=True)
-class JournalEntry:
-    """One entry as the applier reads it: its place, what it did, its content (an N-Triples document)."""
-
-    sequence: int
-    action: str
-    content: bytes
-
-
 def triple_digest(line: str) -> bytes:
     """128-bit digest of a triple's N-Triples text: at a billion triples a false match is ~1e-21 likely."""
     return hashlib.blake2b(line.encode("utf-8"), digest_size=16).digest()
@@ -97,7 +109,7 @@ def ntriples_document(lines: Sequence[str]) -> bytes:
     return "".join(f"{line} .\n" for line in lines).encode("utf-8")
 
 
-class Journal:
+class Journal(JournalReads):
     """One connection serves every call, under a lock, so appends are serialised and extend one chain; the
     database's write transactions also keep other processes (API workers, other hosts) from forking it."""
 
@@ -110,6 +122,7 @@ class Journal:
         self._known: set[bytes] = set()
         self._known_epoch = -1
         self.storage_problem: str | None = None  # why the last write failed for want of space, until one works
+        self._any_erased: bool | None = None  # whether erased_triples holds any digest (None: not read yet)
         with self._lock:
             database.script(SCHEMA)
             with database.writing():
@@ -126,14 +139,15 @@ class Journal:
         with self._lock:
             with self._storage_errors(), self._transaction() as connection:
                 epoch = self._epoch(connection)
-                if epoch != self._known_epoch:
-                    self._known, self._known_epoch = set(), epoch
+                if epoch != self._known_epoch:  # a clearing or an erasure (in any process) since the last post
+                    self._known, self._known_epoch, self._any_erased = set(), epoch, None
                 sequence, previous = self._head(connection)
                 outcomes: list[Receipt | BaseException] = []
+                held_back: list[set[bytes]] = []
                 for post in posts:
                     connection.execute("SAVEPOINT post")
                     try:
-                        receipt, content = self._post_receipt(connection, post, sequence + 1, previous)
+                        receipt, content, withheld = self._post_receipt(connection, post, sequence + 1, previous)
                         self._insert(connection, receipt, content)
                     except Exception as error:
                         connection.execute("ROLLBACK TO post")
@@ -143,11 +157,14 @@ class Journal:
                         connection.execute("RELEASE post")
                     sequence, previous = receipt.sequence, receipt.receipt_hash
                     outcomes.append(receipt)
+                    held_back.append(withheld)
                 self._check_size()
-            # Committed: only now may the cache say these triples are in the journal.
+            # Committed: only now may the cache say these triples are in the journal (those held back are not:
+            # the next post re-sending them is told again).
             for post, outcome in zip(posts, outcomes, strict=True):
                 if isinstance(outcome, Receipt):
-                    self._known.update(post.digests)
+                    self._known.update(digest for digest in post.digests if digest not in held_back[0])
+                    held_back.pop(0)
         return outcomes
 
     def append_clear(self, *, log_id: str, user: str, claimed_user: str | None) -> Receipt:
@@ -158,16 +175,43 @@ class Journal:
             self._known, self._known_epoch = set(), epoch
         return receipt
 
+    def append_erasure(self, erasure: Erasure) -> ErasureDone | None:
+        """Remove the lines `erasure` selects from every post's content and record it as one entry, in one
+        transaction; returns its receipt and the lines removed (None, and nothing recorded, when no post holds
+        such a line). The entry keeps the removed lines only until the store has dropped them
+        (`erasure_applied`)."""
+        found, scanned_through = candidates(self.database, self._lock, erasure.selection)
+        with self._lock, self._storage_errors():
+            with self._transaction() as connection:
+                sequence, previous = self._head(connection)
+                redaction = redact(connection, erasure, found, scanned_through, sequence + 1)
+                if not redaction.items:
+                    return None
+                digests = [triple_digest(line[:-2].decode()) for line in redaction.removed]
+                forget_digests(connection, digests, erasure.withhold)
+                self._next_epoch(connection)  # every process's cache of held triples starts again
+                record = RedactionRecord(erasure.kind, erasure.reason, redaction.items)
+                receipt = _chained(erasure_receipt(erasure, record, sequence + 1, previous))
+                self._insert(connection, receipt, record.document())
+                connection.execute(
+                    "INSERT INTO erasure_pending (sequence, content) VALUES (?, ?)",
+                    (receipt.sequence, zlib.compress(b"".join(line + b"\n" for line in redaction.removed))),
+                )
+            # The removed triples may come again (or, withheld, be told of again): the cache forgets them all.
+            self._known, self._known_epoch = set(), -1
+            self._any_erased = self._any_erased or erasure.withhold
+        return ErasureDone(receipt, len(redaction.items), redaction.removed)
+
+    def erasure_applied(self, through: int) -> None:
+        """The store has applied every erasure through `through`: the lines they removed are kept no longer."""
+        with self._lock, self._transaction() as connection:
+            connection.execute("DELETE FROM erasure_pending WHERE sequence <= ?", (through,))
+
     def _clear(self, log_id: str, user: str, claimed_user: str | None) -> tuple[Receipt, int]:
         with self._transaction() as connection:
             removed = connection.execute("SELECT COUNT(*) FROM journal_triples").fetchone()[0]
             connection.execute("DELETE FROM journal_triples")
-            epoch = self._epoch(connection) + 1
-            connection.execute(
-                "INSERT INTO journal_state (name, value) VALUES ('epoch', ?) "
-                "ON CONFLICT (name) DO UPDATE SET value = excluded.value",
-                (epoch,),
-            )
+            epoch = self._next_epoch(connection)
             sequence, previous = self._head(connection)
             receipt = _chained(
                 Receipt(
@@ -180,16 +224,22 @@ class Journal:
 
     def _post_receipt(
         self, connection: Database, post: PostEntry, sequence: int, previous: str
-    ) -> tuple[Receipt, bytes]:
+    ) -> tuple[Receipt, bytes, set[bytes]]:
+        """The post's receipt and content, and the digests of its triples an erasure removed: those are not
+        recorded again (a robot's client re-sends everything it ever logged), and the receipt counts them."""
         unknown = [index for index, digest in enumerate(post.digests) if digest not in self._known]
         new_digests = _insert_new_digests(connection, [post.digests[index] for index in unknown])
-        new_lines = [post.lines[index] for index in unknown if post.digests[index] in new_digests]
+        withheld = erased_among(connection, new_digests) if new_digests and self._erasures(connection) else set()
+        new_lines = [
+            post.lines[i] for i in unknown if post.digests[i] in new_digests and post.digests[i] not in withheld
+        ]
         content = ntriples_document(new_lines)
         receipt = Receipt(
             sequence, post.log_id, "ingest", post.user, post.claimed_user, utc_iso(), post.payload_sha256,
             len(post.lines), len(new_lines), 0, hashlib.sha256(content).hexdigest(), previous, "",
+            content_digest(content), len(withheld),
         )  # fmt: skip
-        return _chained(receipt), content
+        return _chained(receipt), content, withheld
 
     def _insert(self, connection: Database, receipt: Receipt, content: bytes) -> None:
         connection.execute(
@@ -197,93 +247,26 @@ class Journal:
             (*receipt.row(), zlib.compress(content) if content else b""),
         )
 
-    # --- reading ---------------------------------------------------------------------------------------
-
-    def page(self, limit: int, offset: int) -> tuple[list[Receipt], int]:
-        """Receipts newest first, and how many there are in all."""
-        with self._lock:
-            total = self.database.execute("SELECT COUNT(*) FROM receipts").fetchone()[0]
-            rows = self.database.execute(
-                f"SELECT {COLUMNS} FROM receipts ORDER BY sequence DESC LIMIT ? OFFSET ?", (limit, offset)
-            ).fetchall()
-        return [Receipt(*row) for row in rows], total
-
-    def entry(self, log_id: str) -> tuple[Receipt, bytes | None]:
-        """A receipt and its content as received (None for a receipt from before the journal kept content)."""
-        with self._lock:
-            row = self.database.execute(
-                f"SELECT {COLUMNS}, content FROM receipts WHERE log_id = ?", (log_id,)
-            ).fetchone()
-        if row is None:
-            raise NotFound(f"No receipt with log_id '{log_id}'.")
-        receipt = Receipt(*row[:-1])
-        return receipt, None if receipt.content_sha256 is None else _inflate(row[-1])
-
-    def age_of(self, sequence: int) -> float:
-        """Seconds since entry `sequence` was recorded (0 if there is no such entry)."""
-        with self._lock:
-            row = self.database.execute("SELECT recorded_at FROM receipts WHERE sequence = ?", (sequence,))
-            found = row.fetchone()
-        if found is None:
-            return 0.0
-        recorded = datetime.fromisoformat(found[0].replace("Z", "+00:00"))
-        return max(0.0, (datetime.now(UTC) - recorded).total_seconds())
-
-    def head(self) -> int:
-        with self._lock:
-            return self._head(self.database)[0]
-
-    def entries_after(self, sequence: int, limit: int) -> list[JournalEntry]:
-        """Up to `limit` entries after `sequence`, oldest first, content decompressed."""
-        with self._lock:
-            rows = self.database.execute(
-                "SELECT sequence, action, content FROM receipts WHERE sequence > ? ORDER BY sequence LIMIT ?",
-                (sequence, limit),
-            ).fetchall()
-        return [JournalEntry(number, action, _inflate(blob)) for number, action, blob in rows]
-
-    def last_clearing(self) -> int:
-        """The sequence of the newest clearing (0 when there was none): the store holds what came after it."""
-        with self._lock:
-            found = self.database.execute("SELECT MAX(sequence) FROM receipts WHERE action = 'delete_all'")
-            return found.fetchone()[0] or 0
-
-    def received_documents(self, batch_entries: int = 200) -> Iterator[bytes]:
-        """The content of every post since the last clearing, oldest first: the events graph as received."""
-        position = self.last_clearing()
-        while entries := self.entries_after(position, batch_entries):
-            for entry in entries:
-                if entry.content:
-                    yield entry.content
-            position = entries[-1].sequence
-
-    def verify(self, *, deep: bool = False) -> Verification:
-        """Recompute every hash and link, oldest first (and with `deep`, every content's hash); report the
-        first receipt where the chain fails. Reads one consistent state, in batches (a whole journal's content
-        would not fit in memory)."""
-        check = ChainCheck()
-        columns = f"{COLUMNS}, content" if deep else COLUMNS
-        query = f"SELECT {columns} FROM receipts WHERE sequence > ? ORDER BY sequence LIMIT {_ROWS_PER_VERIFY}"
-        with self._lock, self.database.reading():
-            position = 0
-            while rows := self.database.execute(query, (position,)).fetchall():
-                for row in rows:
-                    receipt = Receipt(*row[: len(FIELD_NAMES)])
-                    content_hash = hashlib.sha256(_inflate(row[-1])).hexdigest() if deep else None
-                    check.add(receipt, content_hash)
-                position = rows[-1][0]
-        return Verification(check.count, check.first_broken, deep)
-
     def close(self) -> None:
         with self._lock:
             self.database.close()
 
     # --- plumbing --------------------------------------------------------------------------------------
 
-    def _head(self, connection: Database) -> tuple[int, str]:
-        last = connection.execute("SELECT sequence, receipt_hash FROM receipts ORDER BY sequence DESC LIMIT 1")
-        row = last.fetchone()
-        return (row[0], row[1]) if row else (0, GENESIS_HASH)
+    def _erasures(self, connection: Database) -> bool:
+        """Whether any erasure withheld triples from coming back (read once a process; erasures set it)."""
+        if self._any_erased is None:
+            self._any_erased = connection.execute("SELECT 1 FROM erased_triples LIMIT 1").fetchone() is not None
+        return self._any_erased
+
+    def _next_epoch(self, connection: Database) -> int:
+        epoch = self._epoch(connection) + 1
+        connection.execute(
+            "INSERT INTO journal_state (name, value) VALUES ('epoch', ?) "
+            "ON CONFLICT (name) DO UPDATE SET value = excluded.value",
+            (epoch,),
+        )
+        return epoch
 
     def _epoch(self, connection: Database) -> int:
         row = connection.execute("SELECT value FROM journal_state WHERE name = 'epoch'").fetchone()
@@ -338,8 +321,21 @@ def _chained(receipt: Receipt) -> Receipt:
     return replace(receipt, receipt_hash=receipt.computed_hash())
 
 
-def _inflate(blob: bytes | None) -> bytes:
-    return zlib.decompress(blob) if blob else b""
+def erased_among(connection: Database, digests: set[bytes]) -> set[bytes]:
+    """Those of `digests` an erasure withheld: taken out of the journal's triples again, and returned."""
+    found: set[bytes] = set()
+    ordered = list(digests)
+    for start in range(0, len(ordered), _ROWS_PER_INSERT):
+        chunk = ordered[start : start + _ROWS_PER_INSERT]
+        marks = ", ".join(["?"] * len(chunk))
+        found.update(
+            row[0] for row in connection.execute(f"SELECT digest FROM erased_triples WHERE digest IN ({marks})", chunk)
+        )
+    withheld = list(found)
+    for start in range(0, len(withheld), _ROWS_PER_INSERT):
+        chunk = withheld[start : start + _ROWS_PER_INSERT]
+        connection.execute(f"DELETE FROM journal_triples WHERE digest IN ({', '.join(['?'] * len(chunk))})", chunk)
+    return found
 
 
 def _insert_new_digests(connection: Database, digests: list[bytes]) -> set[bytes]:

@@ -5,6 +5,10 @@ breaks the chain at that point and `verify` names it. A receipt also covers `con
 the post's new triples as the journal keeps them, so a deep verification catches edited content too.
 Truncating the newest receipts, or rewriting every receipt from some point on, cannot be detected from the
 file alone: an auditor who wants that keeps a copy of the newest `receipt_hash` elsewhere.
+
+A post's receipt also covers `content_digest`, a digest of its triples that survives an erasure: the SHA-256 of
+the sorted SHA-256 digests of its lines. An erasure removes lines from a post's content and keeps their line
+digests, so the remaining lines still prove they were part of what the receipt covered (redaction.py).
 """
 
 from __future__ import annotations
@@ -15,14 +19,23 @@ from dataclasses import dataclass, fields
 from typing import Literal
 
 GENESIS_HASH = "0" * 64
-Action = Literal["ingest", "delete_all"]
-BrokenReason = Literal["hash mismatch", "previous hash does not match", "sequence gap", "content does not match"]
+Action = Literal["ingest", "delete_all", "erase"]
+BrokenReason = Literal[
+    "hash mismatch",
+    "previous hash does not match",
+    "sequence gap",
+    "content does not match",
+    "redaction does not match",
+]
+# Fields a receipt covers only where it has them: older receipts, written before they existed, keep verifying.
+OPTIONAL_FIELDS = ("content_sha256", "content_digest", "triples_withheld")
 
 
 @dataclass(frozen=True)
 class Receipt:
-    """What one accepted post (or clearing) did, and where it sits in the chain. `content_sha256` is None only
-    on receipts written before the journal kept posts' content."""
+    """What one accepted post, clearing or erasure did, and where it sits in the chain. `content_sha256` is None
+    only on receipts written before the journal kept posts' content; `content_digest` and `triples_withheld` on
+    receipts written before erasures existed (and on clearings and erasures, which carry no triples)."""
 
     sequence: int
     log_id: str
@@ -37,13 +50,16 @@ class Receipt:
     content_sha256: str | None
     previous_hash: str
     receipt_hash: str
+    content_digest: str | None = None  # sha256 of the sorted sha256 digests of the content's lines
+    triples_withheld: int | None = None  # triples of the post an erasure had removed, not recorded again
 
     def covered(self) -> dict[str, object]:
-        """The fields the hash covers: every other one (content_sha256 only where the receipt has one, so
-        receipts from before it existed keep verifying)."""
+        """The fields the hash covers: every other one (the optional ones only where the receipt has them, so
+        receipts from before they existed keep verifying)."""
         fields_ = {name: getattr(self, name) for name in _HASHED_FIELDS}
-        if self.content_sha256 is None:
-            del fields_["content_sha256"]
+        for name in OPTIONAL_FIELDS:
+            if fields_[name] is None:
+                del fields_[name]
         return fields_
 
     def computed_hash(self) -> str:
@@ -81,6 +97,7 @@ class Verification:
     receipts: int
     first_broken: BrokenLink | None
     deep: bool = False
+    redactions: int = 0  # erasures recorded in the chain
 
     @property
     def valid(self) -> bool:
@@ -96,17 +113,17 @@ class ChainCheck:
         self._expected_sequence = 1
         self._previous = GENESIS_HASH
 
-    def add(self, receipt: Receipt, content_sha256: str | None = None) -> None:
-        """Check one receipt; with `content_sha256` (a deep check), also that its content is what it covers."""
+    def add(self, receipt: Receipt, content_fault: BrokenReason | None = None) -> None:
+        """Check one receipt; `content_fault` is what a deep check found wrong with its content, if anything."""
         self.count += 1
         if self.first_broken is None:
-            reason = _fault(receipt, self._expected_sequence, self._previous, content_sha256)
+            reason = _fault(receipt, self._expected_sequence, self._previous) or content_fault
             if reason is not None:
                 self.first_broken = BrokenLink(receipt.sequence, receipt.log_id, reason)
         self._expected_sequence, self._previous = receipt.sequence + 1, receipt.receipt_hash
 
 
-def _fault(receipt: Receipt, expected_sequence: int, previous: str, content_sha256: str | None) -> BrokenReason | None:
+def _fault(receipt: Receipt, expected_sequence: int, previous: str) -> BrokenReason | None:
     # A deleted receipt leaves a gap; an edited one no longer matches its own hash; a receipt whose hash
     # was recomputed after an edit no longer matches the next receipt's `previous_hash`.
     if receipt.sequence != expected_sequence:
@@ -115,6 +132,4 @@ def _fault(receipt: Receipt, expected_sequence: int, previous: str, content_sha2
         return "hash mismatch"
     if receipt.previous_hash != previous:
         return "previous hash does not match"
-    if content_sha256 is not None and receipt.content_sha256 not in (None, content_sha256):
-        return "content does not match"
     return None

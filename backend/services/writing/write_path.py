@@ -112,10 +112,12 @@ class WritePath:
         """New entries are in the journal: the applier takes them in its own thread."""
         self.applier.notify()
 
-    def apply_now(self) -> None:
+    def apply_now(self, *, wait: bool = True) -> None:
         """Apply what is pending in the calling thread (a post acknowledged once stored applies its own entry
-        rather than hand it to the applier's thread and wait: a thread hop less). Raises the store's outage."""
-        self.applier.apply_pending()
+        rather than hand it to the applier's thread and wait: a thread hop less). Raises the store's outage.
+        Without `wait`, leaves it to the thread already applying (a long step: an erasure rewriting the store),
+        so a post's wait stays bounded by its own timeout."""
+        self.applier.apply_pending(wait=wait)
 
     def wait_applied(self, sequence: int, timeout: float) -> bool:
         return self.applier.wait_for(sequence, timeout)

@@ -136,6 +136,10 @@ class KeptQuery:
         self.rows.clear(self.layout)
         self.rows.set_state(self.name, self.fingerprint, through)
 
+    def forget_erased(self) -> None:
+        """Called by the keeper between clearing every view and building them again after an erasure."""
+        self.rows.forget_erased()
+
     def update(self, delta: Delta, through: int) -> None:
         # The store is asked everything first, then the rows change in one transaction: the reports of a remote
         # store are updated side by side, and take turns only for writing.

@@ -288,6 +288,14 @@ class KeptRows:
                 connection.execute(f"DELETE FROM {table}")
         # The terms stay (other reports' rows refer to them): a few numbers for IRIs no row holds any more.
 
+    def forget_erased(self) -> None:
+        """An erasure: every report of these rows is cleared and built again; the table of terms and the change
+        log go first (they would go on naming what was erased), and the writer forgets the ids it remembered."""
+        with self.db.writing() as connection:
+            connection.execute(f"DELETE FROM {TERMS}")
+            connection.execute("DELETE FROM report_changes")
+        self.terms.forget()
+
     def prune_changes(self, keep: int) -> None:
         with self.db.writing() as connection:
             connection.execute(

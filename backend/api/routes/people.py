@@ -1,0 +1,111 @@
+"""People's data (admin): erase one person everywhere (POST /humans/erase), and give them what is held about them
+(GET /humans/{iri}/export, as RDF or as a page to read)."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, Query, Request
+from fastapi.concurrency import run_in_threadpool
+from fastapi.responses import Response
+from pydantic import BaseModel, Field
+from pyoxigraph import NamedNode
+
+from segb_server.backend.api.deps import Admin, ServicesDep
+from segb_server.backend.services.formats import PERSON_EXPORTS, names, negotiate
+from segb_server.backend.services.graph.export import write_graph
+from segb_server.backend.services.people.erasure import MAX_REASON
+from segb_server.backend.services.people.story_page import PAGE_POLICY, story_page
+from segb_server.backend.services.sparql.catalog import Parameter, to_term
+
+router = APIRouter(tags=["people"])
+
+
+class ErasureRequest(BaseModel):
+    iri: str = Field(description="The person's IRI, as the robots logged it (e.g. …/human_maria).", max_length=2000)
+    reason: str = Field(
+        description="Why (kept in the ledger for good, in the erasure's record: do not name the person).",
+        max_length=MAX_REASON,
+    )
+
+
+class ErasureAnswer(BaseModel):
+    message: str
+    log_id: str = Field(description="The erasure's entry in the ledger.")
+    sequence: int
+    triples_removed: int = Field(description="Triples removed from the posts' content (and from the store).")
+    receipts_redacted: int = Field(description="Posts whose content lost triples.")
+    resources: int = Field(description="Resources erased with the person (their messages, emotions read, …).")
+    name_still_mentioned: int = Field(
+        description="Texts left in the log that still contain the person's first name: a robot's reply or an "
+        "activity's label, which the rule keeps (free text is not rewritten). Look for them with /sparql."
+    )
+    seconds: dict[str, float] = Field(
+        description="How long each step took: found (the rule run on the store), journaled (the posts redacted and "
+        "the entry appended), applied (the store without the triples), forgotten (shared contexts, server log, "
+        "copies for SPARQL), viewed (the views built again), views_compacted, checked."
+    )
+    views_rebuilt: bool = Field(
+        description="Whether the reports' rows and the graph index were built again before answering; until they "
+        "are, reports are evaluated by their queries and the graph answers 503."
+    )
+
+
+@router.post(
+    "/humans/erase",
+    response_model=ErasureAnswer,
+    summary="Erase one person everywhere",
+    description=(
+        "Erases a person (GDPR Art. 17) from the store, every view, the journal's posts, the shared contexts, the "
+        "copies users' SPARQL runs on and the server log: the person, the messages they sent, the emotions read on "
+        "them, the shared events about them alone and their observations (the rule: `sparql/people/erase.rq`). "
+        "What others said stays; a robot's reply stays and loses its links to what was erased. The erasure is "
+        "one entry of the ledger (who, when, why, which posts, how many triples), which keeps verifying. "
+        "A robot re-sending the erased triples later has them held back (counted as `triples_withheld`). "
+        "404 when nothing about the IRI is held; 422 for an IRI that is not absolute or an empty reason."
+    ),
+)
+def erase_human(body: ErasureRequest, services: ServicesDep, principal: Admin) -> ErasureAnswer:
+    # A plain `def` route runs in the thread pool: the erasure reads and writes the journal and the store.
+    iri = to_term(Parameter("iri", "iri"), body.iri.strip()).value
+    done = services.erasure.erase_human(iri, body.reason, principal.username)
+    record = done.receipt
+    return ErasureAnswer(
+        message=f"Erased: {record.triples_removed} triples removed.",
+        log_id=record.log_id,
+        sequence=record.sequence,
+        triples_removed=record.triples_removed,
+        receipts_redacted=done.receipts_redacted,
+        resources=done.resources,
+        views_rebuilt=done.views_rebuilt,
+        name_still_mentioned=done.name_still_mentioned,
+        seconds=done.seconds,
+    )
+
+
+@router.get(
+    "/humans/{iri:path}/export",
+    summary="Everything held about one person",
+    description=(
+        "A person's data (GDPR Art. 15): every triple the store holds about them — exactly what erasing them "
+        "would remove — as Turtle, N-Triples or JSON-LD, or (`text/html`, the default for a browser; "
+        "`?format=html`) a self-contained page telling it in time order: what they said and to which robot, what "
+        "a robot replied, which emotions were read on them with which model, when they were seen. The IRI is "
+        "percent-encoded in the path; the server log writes the path without it. 404 when nothing is held."
+    ),
+    responses={200: {"content": {fmt.media_type: {} for fmt in PERSON_EXPORTS}}, 404: {}, 406: {}},
+)
+async def export_human(
+    iri: str,
+    request: Request,
+    services: ServicesDep,
+    principal: Admin,
+    format: str | None = Query(None, description=f"{', '.join(names(PERSON_EXPORTS))}; overrides Accept."),
+) -> Response:
+    fmt = negotiate(PERSON_EXPORTS, request.headers.get("accept"), format, what="a person's data")
+    human = to_term(Parameter("iri", "iri"), iri).value
+    data = await run_in_threadpool(services.people_export.export, human)
+    disposition = {"Content-Disposition": f'attachment; filename="person.{fmt.extension}"'}
+    if fmt.rdf is None:
+        headers = {**disposition, "Content-Security-Policy": PAGE_POLICY}
+        return Response(story_page(data), media_type=fmt.content_type, headers=headers)
+    body = b"".join(write_graph([data.triples], fmt, NamedNode(services.store.graph_uri)))
+    return Response(body, media_type=fmt.content_type, headers=disposition)

@@ -1,0 +1,231 @@
+"""Erasing one person (GDPR Art. 17), and retention's erasure of old posts, through the journal.
+
+What goes with a person is the rule `sparql/people/erase.rq` (docs/personal-data.md explains it). The resources
+it names are found in the store once it holds the whole journal; every line of every post whose subject or
+object is one of them leaves the journal's content in one transaction that also appends the erasure's record
+(writing/erasure.py); the applier then removes those triples from the store, the views' keeper builds every
+view again from the store, and the other places that hold data let the person go too (`Forgetting`).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+import uuid
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from pyoxigraph import Literal, NamedNode, RdfFormat, parse
+
+from segb_server.backend.services.errors import InvalidParameter, NotFound
+from segb_server.backend.services.sparql.catalog import CatalogQuery
+from segb_server.backend.services.writing.erasure import Erasure, ErasureDone, recorded_before, touching
+from segb_server.backend.services.writing.receipts import Receipt
+from segb_server.backend.services.writing.write_path import WritePath
+from segb_server.backend.store.base import Store, StoreUnavailable, select
+
+logger = logging.getLogger("segb.people")
+
+RULE = "people/erase"
+APPLY_TIMEOUT_SECONDS = 600.0  # an erasure is answered once the store has dropped the triples
+MAX_REASON = 500
+SHORTEST_TERM = 3  # words shorter than this are too common to look for in the server log
+
+
+@dataclass(frozen=True)
+class Forgotten:
+    """What an erasure removed, for the places outside the store and the journal: the IRIs it erased and the
+    texts (names, sentences) of the literals it removed; for retention, the time before which all went."""
+
+    iris: frozenset[str] = frozenset()
+    texts: frozenset[str] = frozenset()
+    before: str | None = None
+
+
+@dataclass
+class Forgetting:
+    """The places besides the store and the journal that hold what robots logged: each is told what went.
+    `now`: once the store has applied the erasure; `after_views`: once the views are built again."""
+
+    now: list[Callable[[Forgotten], object]] = field(default_factory=list)
+    after_views: list[Callable[[Forgotten], object]] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class ErasureResult:
+    receipt: Receipt
+    receipts_redacted: int
+    resources: int
+    views_rebuilt: bool
+    # Literals the rule keeps (a robot's reply, an activity's label) that still hold the person's first name:
+    # free text is not rewritten, and whoever erases should know what remains.
+    name_still_mentioned: int = 0
+    seconds: dict[str, float] = field(default_factory=dict)  # how long each step took (found, journaled, …)
+
+
+class ErasureService:
+    """One erasure at a time (they are rare, and each rewrites the store's files on the embedded store)."""
+
+    def __init__(
+        self,
+        store: Store,
+        rule: CatalogQuery,
+        writes: WritePath,
+        forgetting: Forgetting,
+        *,
+        views_timeout: float = 120.0,
+    ) -> None:
+        self.store = store
+        self.rule = rule
+        self.writes = writes
+        self.forgetting = forgetting
+        self.views_timeout = views_timeout
+        self._one_at_a_time = threading.Lock()
+
+    def resources(self, human: str) -> list[str]:
+        """The IRIs the rule erases with `human`, found in the store (blocking)."""
+        bound = self.rule.bindings({"human": human})
+        rows = select(self.store, self.rule.text, bound).rows
+        return sorted({row["resource"].value for row in rows if isinstance(row.get("resource"), NamedNode)})
+
+    def erase_human(self, human: str, reason: str, actor: str) -> ErasureResult:
+        """Erase `human` everywhere; 404 when neither the store nor the journal holds anything about them."""
+        reason = _checked_reason(reason)
+        with self._one_at_a_time:
+            clock = _Clock()
+            self._caught_up()
+            found = self.resources(human)
+            clock.lap("found")
+            if human not in found:
+                found.append(human)  # the journal may still hold them (a post not applied, an older history)
+            selection = touching(found)
+            erasure = Erasure(str(uuid.uuid4()), actor, "human", reason, selection, withhold=True)
+            done = self._journal(erasure, f"Nothing about <{human}> is held: nothing was erased.")
+            clock.lap("journaled")
+            receipt = done.receipt
+            forgotten = Forgotten(frozenset(found), frozenset(_texts(done.removed)))
+            logger.warning(
+                "erasure log_id=%s actor=%s kind=human resources=%d triples=%d",
+                receipt.log_id, actor, len(found), receipt.triples_removed,
+            )  # fmt: skip
+            rebuilt = self._forget(receipt, forgotten, clock)
+            mentions = self._mentions(_first_names(done.removed, human))
+            clock.lap("checked")
+            return ErasureResult(receipt, done.posts, len(found), rebuilt, mentions, clock.laps)
+
+    def erase_before(self, cutoff: str, reason: str, actor: str) -> ErasureResult | None:
+        """Retention: every post recorded before `cutoff` loses its content; None when none had any."""
+        with self._one_at_a_time:
+            erasure = Erasure(str(uuid.uuid4()), actor, "retention", reason, recorded_before(cutoff), withhold=False)
+            try:
+                done = self._journal(erasure, "")
+            except NotFound:
+                return None
+            receipt = done.receipt
+            clock = _Clock()
+            logger.warning("erasure log_id=%s kind=retention before=%s triples=%d", receipt.log_id, cutoff,
+                           receipt.triples_removed)  # fmt: skip
+            rebuilt = self._forget(receipt, Forgotten(before=cutoff), clock)
+            return ErasureResult(receipt, done.posts, 0, rebuilt, seconds=clock.laps)
+
+    # --- steps ---------------------------------------------------------------------------------------
+
+    def _caught_up(self) -> None:
+        """The store holds the whole journal (the rule reads it), or StoreUnavailable."""
+        self._apply()
+        if not self.writes.wait_applied(self.writes.journal.head(), APPLY_TIMEOUT_SECONDS):
+            raise StoreUnavailable("the store has not applied the journal yet; the erasure was not started")
+
+    def _journal(self, erasure: Erasure, nothing: str) -> ErasureDone:
+        done = self.writes.journal.append_erasure(erasure)
+        if done is None:
+            raise NotFound(nothing)
+        return done
+
+    def _forget(self, receipt: Receipt, forgotten: Forgotten, clock: _Clock) -> bool:
+        """Once the store applied the erasure, the other places forget too; True when the views were built again
+        within the wait (otherwise the places that follow them forget once they are)."""
+        self._apply()
+        if not self.writes.wait_applied(receipt.sequence, APPLY_TIMEOUT_SECONDS):
+            raise StoreUnavailable(
+                f"the erasure is recorded (log_id {receipt.log_id}) and the store will apply it when it answers"
+            )
+        clock.lap("applied")
+        for forget in self.forgetting.now:
+            forget(forgotten)
+        clock.lap("forgotten")
+        if self.writes.wait_viewed(receipt.sequence, self.views_timeout):
+            clock.lap("viewed")
+            for forget in self.forgetting.after_views:
+                forget(forgotten)
+            clock.lap("views_compacted")
+            return True
+        threading.Thread(target=self._after_views, args=(receipt, forgotten), daemon=True).start()
+        return False
+
+    def _mentions(self, names: set[str]) -> int:
+        """How many literals left in the store contain one of `names` (any case)."""
+        if not names:
+            return 0
+        tests = " || ".join(f"CONTAINS(LCASE(STR(?o)), {_string(name.lower())})" for name in sorted(names))
+        rows = select(self.store, f"SELECT (COUNT(*) AS ?n) WHERE {{ ?s ?p ?o FILTER (isLiteral(?o) && ({tests})) }}")
+        return int(rows.rows[0]["n"].value) if rows.rows else 0
+
+    def _apply(self) -> None:
+        """Apply what is pending in this thread where this process applies (a command-line erasure has no
+        applier thread); the applier's thread would otherwise take it."""
+        self.writes.entries_written()
+        self.writes.apply_now()
+
+    def _after_views(self, receipt: Receipt, forgotten: Forgotten) -> None:
+        while not self.writes.wait_viewed(receipt.sequence, self.views_timeout):
+            logger.info("erasure log_id=%s: the views are still being built", receipt.log_id)
+        for forget in self.forgetting.after_views:
+            forget(forgotten)
+
+
+class _Clock:
+    def __init__(self) -> None:
+        self.laps: dict[str, float] = {}
+        self._last = time.perf_counter()
+
+    def lap(self, name: str) -> None:
+        now = time.perf_counter()
+        self.laps[name] = round(now - self._last, 3)
+        self._last = now
+
+
+def _checked_reason(reason: str) -> str:
+    reason = " ".join(reason.split())
+    if not reason:
+        raise InvalidParameter("reason", "say why (it is kept in the ledger for good; do not name the person)")
+    if len(reason) > MAX_REASON:
+        raise InvalidParameter("reason", f"at most {MAX_REASON} characters")
+    return reason
+
+
+FIRST_NAME = "http://xmlns.com/foaf/0.1/firstName"
+
+
+def _first_names(lines: list[bytes], human: str) -> set[str]:
+    subject = f"<{human}> <{FIRST_NAME}> ".encode()
+    found = [line for line in lines if line.startswith(subject)]
+    return {q.object.value for q in parse(b"".join(x + b"\n" for x in found), RdfFormat.N_TRIPLES)} if found else set()
+
+
+def _string(text: str) -> str:
+    """A SPARQL string literal for `text` (N-Triples escaping: nothing in it can end the literal)."""
+    return str(Literal(text))
+
+
+def _texts(lines: list[bytes]) -> set[str]:
+    """The text of every literal among the removed lines (what the server log might quote)."""
+    if not lines:
+        return set()
+    found = {
+        quad.object.value
+        for quad in parse(b"".join(line + b"\n" for line in lines), RdfFormat.N_TRIPLES)
+        if isinstance(quad.object, Literal)
+    }
+    return {text for text in found if len(text) >= SHORTEST_TERM}

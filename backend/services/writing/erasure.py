@@ -1,0 +1,162 @@
+"""The journal's side of an erasure: which lines of which posts go, and the one transaction that removes them
+and appends the erasure's entry.
+
+The lines are found twice: first in a scan that does not hold posts up (batches, each read under the journal's
+lock for a moment), then, inside the write transaction, again in the posts the scan found and in every post
+recorded since, so a post arriving meanwhile cannot slip through. Either the whole erasure is committed — the
+posts' content redacted, the triples' digests moved out of the journal's set (into the withheld ones, for a
+person), the erasure's entry and the lines the store must drop — or none of it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import zlib
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import AbstractContextManager
+from dataclasses import dataclass
+from typing import Any
+
+from segb_server.backend.services.clock import utc_iso
+from segb_server.backend.services.writing.receipts import Receipt
+from segb_server.backend.services.writing.redaction import Redacted, RedactionRecord, line_digest, lines_of
+from segb_server.backend.state.database import Database
+
+SCAN_BATCH = 500
+_ROWS_PER_STATEMENT = 400
+
+
+@dataclass(frozen=True)
+class LineSelection:
+    """Which content lines an erasure removes: of the posts `posts(recorded_at)` admits, the lines `lines` picks
+    (a line as the content holds it: `<s> <p> o .`)."""
+
+    posts: Callable[[str], bool]
+    lines: Callable[[bytes], bool]
+
+
+def touching(resources: Iterable[str]) -> LineSelection:
+    """Every line whose subject or object is one of `resources` (IRIs), in every post."""
+    wanted = {f"<{iri}>".encode() for iri in resources}
+
+    def line_touches(line: bytes) -> bool:
+        subject, _, rest = line.partition(b" ")
+        if subject in wanted:
+            return True
+        _predicate, _, obj = rest.partition(b" ")
+        return obj[:-2] in wanted  # the object, without the line's closing " ."
+
+    return LineSelection(lambda _recorded_at: True, line_touches)
+
+
+def recorded_before(cutoff: str) -> LineSelection:
+    """Every line of the posts recorded before `cutoff` (ISO 8601 UTC, as receipts write it)."""
+    return LineSelection(lambda recorded_at: recorded_at < cutoff, lambda _line: True)
+
+
+@dataclass(frozen=True)
+class Erasure:
+    """An erasure as asked: who, why, what kind, which lines, and whether re-sent triples are held back."""
+
+    log_id: str
+    user: str
+    kind: str
+    reason: str
+    selection: LineSelection
+    withhold: bool
+
+
+def candidates(
+    database: Database, lock: AbstractContextManager[object], selection: LineSelection
+) -> tuple[list[int], int]:
+    """The posts holding at least one line to erase, and the last entry scanned (read in batches, each under
+    `lock` only while it is read: decompressing and matching, seconds at a million triples, holds no post up)."""
+    found: list[int] = []
+    position = 0
+    while True:
+        with lock:
+            rows = database.execute(
+                "SELECT sequence, recorded_at, content FROM receipts WHERE sequence > ? AND action = 'ingest' "
+                f"ORDER BY sequence LIMIT {SCAN_BATCH}",
+                (position,),
+            ).fetchall()
+            if not rows:
+                head = database.execute("SELECT MAX(sequence) FROM receipts").fetchone()[0] or 0
+                return found, max(position, head)
+        for sequence, recorded_at, blob in rows:  # outside the lock
+            if blob and selection.posts(recorded_at) and any(map(selection.lines, lines_of(zlib.decompress(blob)))):
+                found.append(sequence)
+        position = rows[-1][0]
+
+
+@dataclass(frozen=True)
+class ErasureDone:
+    """An erasure recorded: its receipt, the posts it redacted and the lines it removed (to find elsewhere)."""
+
+    receipt: Receipt
+    posts: int
+    removed: list[bytes]
+
+
+@dataclass(frozen=True)
+class Redaction:
+    """What the transaction removed: the record's items and the removed lines (for the store)."""
+
+    items: list[Redacted]
+    removed: list[bytes]
+
+
+def redact(
+    connection: Database, erasure: Erasure, found: list[int], scanned_through: int, record_sequence: int
+) -> Redaction:
+    """Inside the write transaction: remove the selected lines from the posts found and from every post since
+    the scan, noting their digests beside each post."""
+    items: list[Redacted] = []
+    removed: list[bytes] = []
+    for sequence, log_id, recorded_at, blob, redacted in _posts(connection, found, scanned_through):
+        if not blob or not erasure.selection.posts(recorded_at):
+            continue
+        lines = lines_of(zlib.decompress(blob))
+        gone = [line for line in lines if erasure.selection.lines(line)]
+        if not gone:
+            continue
+        kept = b"".join(line + b"\n" for line in lines if not erasure.selection.lines(line))
+        digests = (redacted or b"") + b"".join(line_digest(line) for line in gone)
+        connection.execute(
+            "UPDATE receipts SET content = ?, redacted_digests = ?, redacted_by = ? WHERE sequence = ?",
+            (zlib.compress(kept) if kept else b"", digests, record_sequence, sequence),
+        )
+        items.append(Redacted(sequence, log_id, len(gone), hashlib.sha256(kept).hexdigest()))
+        removed += gone
+    return Redaction(items, removed)
+
+
+def _posts(connection: Database, found: list[int], scanned_through: int) -> Iterator[Any]:
+    columns = "SELECT sequence, log_id, recorded_at, content, redacted_digests FROM receipts WHERE action = 'ingest'"
+    for start in range(0, len(found), _ROWS_PER_STATEMENT):
+        chunk = found[start : start + _ROWS_PER_STATEMENT]
+        yield from connection.execute(f"{columns} AND sequence IN ({', '.join(['?'] * len(chunk))})", chunk)
+    yield from connection.execute(f"{columns} AND sequence > ? ORDER BY sequence", (scanned_through,))
+
+
+def forget_digests(connection: Database, digests: list[bytes], withhold: bool) -> None:
+    """The removed triples are no longer the journal's (they may be recorded again); a person's are withheld:
+    recorded again by no later post."""
+    for start in range(0, len(digests), _ROWS_PER_STATEMENT):
+        chunk = digests[start : start + _ROWS_PER_STATEMENT]
+        connection.execute(f"DELETE FROM journal_triples WHERE digest IN ({', '.join(['?'] * len(chunk))})", chunk)
+        if withhold:
+            connection.execute(
+                f"INSERT INTO erased_triples (digest) VALUES {', '.join(['(?)'] * len(chunk))} "
+                "ON CONFLICT (digest) DO NOTHING",
+                chunk,
+            )
+
+
+def erasure_receipt(erasure: Erasure, record: RedactionRecord, sequence: int, previous: str) -> Receipt:
+    document = record.document()
+    digest = hashlib.sha256(document).hexdigest()
+    return Receipt(
+        sequence, erasure.log_id, "erase", erasure.user, None, utc_iso(), digest, 0, 0, record.triples_removed,
+        digest, previous, "",
+    )  # fmt: skip

@@ -1,0 +1,181 @@
+"""Reading the journal: receipts, entries for the applier and the views, the content of posts, the erasures'
+records, and the verification of the chain. The journal (journal.py) writes; this is what it reads, shared by
+every caller under the journal's one lock."""
+
+from __future__ import annotations
+
+import threading
+import zlib
+from collections.abc import Iterator
+from dataclasses import dataclass
+from datetime import UTC, datetime
+
+from segb_server.backend.services.errors import NotFound
+from segb_server.backend.services.writing.receipts import FIELD_NAMES, GENESIS_HASH, ChainCheck, Receipt, Verification
+from segb_server.backend.services.writing.redaction import RedactionCheck, RedactionRecord
+from segb_server.backend.state.database import Database
+
+COLUMNS = ", ".join(f'"{name}"' for name in FIELD_NAMES)  # quoted: `user` is a reserved word in PostgreSQL
+_ROWS_PER_VERIFY = 1000
+
+
+@dataclass(frozen=True)
+class JournalEntry:
+    """One entry as the applier reads it: its place, what it did, its content (an N-Triples document; empty
+    for a clearing or an erasure), and for an erasure not yet applied to the store, the lines it removed."""
+
+    sequence: int
+    action: str
+    content: bytes
+    removed: bytes = b""
+
+
+class JournalReads:
+    """The journal's reads; `database` and `_lock` are the journal's."""
+
+    database: Database
+    _lock: threading.Lock
+
+    def page(self, limit: int, offset: int) -> tuple[list[Receipt], int]:
+        """Receipts newest first, and how many there are in all."""
+        with self._lock:
+            total = self.database.execute("SELECT COUNT(*) FROM receipts").fetchone()[0]
+            rows = self.database.execute(
+                f"SELECT {COLUMNS} FROM receipts ORDER BY sequence DESC LIMIT ? OFFSET ?", (limit, offset)
+            ).fetchall()
+        return [Receipt(*row) for row in rows], total
+
+    def entry(self, log_id: str) -> tuple[Receipt, bytes | None]:
+        """A receipt and its content as received (None for a receipt from before the journal kept content)."""
+        with self._lock:
+            row = self.database.execute(
+                f"SELECT {COLUMNS}, content FROM receipts WHERE log_id = ?", (log_id,)
+            ).fetchone()
+        if row is None:
+            raise NotFound(f"No receipt with log_id '{log_id}'.")
+        receipt = Receipt(*row[:-1])
+        return receipt, None if receipt.content_sha256 is None else inflate(row[-1])
+
+    def age_of(self, sequence: int) -> float:
+        """Seconds since entry `sequence` was recorded (0 if there is no such entry)."""
+        with self._lock:
+            row = self.database.execute("SELECT recorded_at FROM receipts WHERE sequence = ?", (sequence,))
+            found = row.fetchone()
+        if found is None:
+            return 0.0
+        recorded = datetime.fromisoformat(found[0].replace("Z", "+00:00"))
+        return max(0.0, (datetime.now(UTC) - recorded).total_seconds())
+
+    def head(self) -> int:
+        with self._lock:
+            return self._head(self.database)[0]
+
+    def entries_after(self, sequence: int, limit: int) -> list[JournalEntry]:
+        """Up to `limit` entries after `sequence`, oldest first, content decompressed."""
+        with self._lock:
+            rows = self.database.execute(
+                "SELECT r.sequence, r.action, r.content, p.content FROM receipts r "
+                "LEFT JOIN erasure_pending p ON p.sequence = r.sequence WHERE r.sequence > ? "
+                "ORDER BY r.sequence LIMIT ?",
+                (sequence, limit),
+            ).fetchall()
+        return [
+            JournalEntry(number, action, inflate(blob) if action == "ingest" else b"", inflate(removed))
+            for number, action, blob, removed in rows
+        ]
+
+    def last_clearing(self) -> int:
+        """The sequence of the newest clearing (0 when there was none): the store holds what came after it."""
+        with self._lock:
+            found = self.database.execute("SELECT MAX(sequence) FROM receipts WHERE action = 'delete_all'")
+            return found.fetchone()[0] or 0
+
+    def last_applied_erasure(self) -> int:
+        """The newest erasure the store has applied, as far as the journal knows (its removed lines are no
+        longer kept); 0 when there is none."""
+        with self._lock:
+            found = self.database.execute(
+                "SELECT MAX(sequence) FROM receipts WHERE action = 'erase' "
+                "AND sequence NOT IN (SELECT sequence FROM erasure_pending)"
+            )
+            return found.fetchone()[0] or 0
+
+    def received_documents(self, batch_entries: int = 200) -> Iterator[bytes]:
+        """The content of every post since the last clearing, oldest first: the events graph as received."""
+        position = self.last_clearing()
+        while entries := self.entries_after(position, batch_entries):
+            for entry in entries:
+                if entry.content:
+                    yield entry.content
+            position = entries[-1].sequence
+
+    def posts_since_clearing(self, batch: int = 200) -> Iterator[tuple[Receipt, bytes, bytes]]:
+        """Every post since the last clearing, oldest first: its receipt, its content and the digests of the
+        lines erasures removed from it."""
+        position = self.last_clearing()
+        query = (
+            f"SELECT {COLUMNS}, content, redacted_digests FROM receipts WHERE sequence > ? AND action = 'ingest' "
+            "ORDER BY sequence LIMIT ?"
+        )
+        while True:
+            with self._lock:
+                rows = self.database.execute(query, (position, batch)).fetchall()
+            if not rows:
+                return
+            for row in rows:
+                yield Receipt(*row[: len(FIELD_NAMES)]), inflate(row[-2]), bytes(row[-1] or b"")
+            position = rows[-1][0]
+
+    def receipts_after(self, sequence: int, batch: int = 1000) -> Iterator[Receipt]:
+        """Every receipt after `sequence`, oldest first."""
+        position = sequence
+        while True:
+            with self._lock:
+                rows = self.database.execute(
+                    f"SELECT {COLUMNS} FROM receipts WHERE sequence > ? ORDER BY sequence LIMIT ?", (position, batch)
+                ).fetchall()
+            if not rows:
+                return
+            yield from (Receipt(*row) for row in rows)
+            position = rows[-1][0]
+
+    def redaction_records(self) -> list[tuple[Receipt, RedactionRecord]]:
+        """Every erasure's receipt and record, oldest first."""
+        with self._lock:
+            rows = self.database.execute(
+                f"SELECT {COLUMNS}, content FROM receipts WHERE action = 'erase' ORDER BY sequence"
+            ).fetchall()
+        return [(Receipt(*row[:-1]), RedactionRecord.parse(inflate(row[-1]))) for row in rows]
+
+    def verify(self, *, deep: bool = False) -> Verification:
+        """Recompute every hash and link, oldest first (and with `deep`, every content's digests, redacted ones
+        against the erasures' records); report the first receipt where the chain fails. Reads one consistent
+        state, in batches (a whole journal's content would not fit in memory)."""
+        check = ChainCheck()
+        columns = f"{COLUMNS}, content, redacted_digests" if deep else COLUMNS
+        query = f"SELECT {columns} FROM receipts WHERE sequence > ? ORDER BY sequence LIMIT {_ROWS_PER_VERIFY}"
+        with self._lock, self.database.reading():
+            records = [
+                (sequence, RedactionRecord.parse(inflate(blob)))
+                for sequence, blob in self.database.execute(
+                    "SELECT sequence, content FROM receipts WHERE action = 'erase'"
+                ).fetchall()
+            ]
+            redactions = RedactionCheck(records)
+            position = 0
+            while rows := self.database.execute(query, (position,)).fetchall():
+                for row in rows:
+                    receipt = Receipt(*row[: len(FIELD_NAMES)])
+                    fault = redactions.fault(receipt, inflate(row[-2]), row[-1] or b"") if deep else None
+                    check.add(receipt, fault)
+                position = rows[-1][0]
+        return Verification(check.count, check.first_broken, deep, len(records))
+
+    def _head(self, connection: Database) -> tuple[int, str]:
+        last = connection.execute("SELECT sequence, receipt_hash FROM receipts ORDER BY sequence DESC LIMIT 1")
+        row = last.fetchone()
+        return (row[0], row[1]) if row else (0, GENESIS_HASH)
+
+
+def inflate(blob: bytes | None) -> bytes:
+    return zlib.decompress(blob) if blob else b""

@@ -1,0 +1,68 @@
+"""People's data and evidence from the command line, on a data directory loaded with the robot client's sample
+log: `segb export --human`, `segb erase`, `segb retention`, `segb evidence`, `segb evidence-key` and
+`segb verify-evidence`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from tests.cli.test_cli import segb
+from tests.conftest import FIXTURES
+
+BOB = "https://example.org/segb/robots/mirror/v1/human_bob"
+
+
+@pytest.fixture
+def data_dir(tmp_path: Path) -> Path:
+    loaded = segb("import", "--data-dir", str(tmp_path), str(FIXTURES / "sample_two_robots.ttl"))
+    assert loaded.returncode == 0, loaded.stderr
+    return tmp_path
+
+
+def test_a_person_is_exported_then_erased_from_the_command_line(data_dir: Path) -> None:
+    page = segb("export", "--data-dir", str(data_dir), "--human", BOB)
+    assert page.returncode == 0 and "What the robots' log holds about Bob" in page.stdout
+    turtle = segb("export", "--data-dir", str(data_dir), "--human", BOB, "--format", "turtle", "-o",
+                  str(data_dir / "bob.ttl"))  # fmt: skip
+    assert turtle.returncode == 0 and '"Bob"@en' in (data_dir / "bob.ttl").read_text()
+
+    erased = segb("erase", "--data-dir", str(data_dir), "--human", BOB, "--reason", "request 12", "--by", "dpo")
+    assert erased.returncode == 0, erased.stderr
+    assert "erased: 86 triples from 1 posts" in erased.stdout
+    assert "2 texts the rule keeps" in erased.stdout  # the mirror robot's reply and a label name him
+    everything = segb("export", "--data-dir", str(data_dir), "--format", "ntriples").stdout
+    assert BOB not in everything and '"Bob"@en' not in everything
+    again = segb("export", "--data-dir", str(data_dir), "--human", BOB)
+    assert again.returncode == 2 and "holds nothing about" in again.stderr
+    missing = segb("erase", "--data-dir", str(data_dir), "--human", BOB, "--reason", "again")
+    assert missing.returncode == 2 and "nothing was erased" in missing.stderr
+
+
+def test_retention_refuses_less_than_six_months_and_erases_what_is_older(data_dir: Path) -> None:
+    short = segb("retention", "--data-dir", str(data_dir), "--days", "30")
+    assert short.returncode == 2 and "AI Act (Art. 19 and 26(6))" in short.stderr
+    assert "ALLOW_SHORT_RETENTION" in short.stderr
+    nothing = segb("retention", "--data-dir", str(data_dir), "--days", "200")
+    assert nothing.returncode == 0 and "nothing is past retention" in nothing.stdout
+    later = segb("retention", "--data-dir", str(data_dir), "--days", "200", "--as-of", "2099-01-01T00:00:00Z")
+    assert later.returncode == 0 and "erased 799 triples from 1 posts past retention" in later.stdout
+    assert segb("export", "--data-dir", str(data_dir), "--format", "ntriples").stdout == ""
+
+
+def test_an_evidence_bundle_made_and_checked_from_the_command_line(data_dir: Path) -> None:
+    bundle = data_dir / "evidence.zip"
+    made = segb("evidence", "--data-dir", str(data_dir), "--since", "2020-01-01T00:00:00Z", "-o", str(bundle))
+    assert made.returncode == 0 and " triples, 1 receipts up to entry 1" in made.stdout, made.stderr
+    key = segb("evidence-key", "--data-dir", str(data_dir))
+    (data_dir / "server.pem").write_text(key.stdout)
+    assert "fingerprint (SHA-256)" in key.stderr
+    checked = segb("verify-evidence", str(bundle), "--public-key", str(data_dir / "server.pem"))
+    assert checked.returncode == 0 and checked.stdout.rstrip().endswith("verified")
+    broken = data_dir / "broken.zip"
+    broken.write_bytes(bundle.read_bytes()[:-40])
+    refused = segb("verify-evidence", str(broken))
+    assert refused.returncode == 1 and "not a readable evidence bundle" in refused.stdout
+    bad_window = segb("evidence", "--data-dir", str(data_dir), "--since", "yesterday", "-o", str(bundle))
+    assert bad_window.returncode == 2 and "since" in bad_window.stderr

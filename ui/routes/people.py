@@ -1,0 +1,67 @@
+"""/people (admin): the people the log holds, each with a link to everything held about them (GET
+/humans/{iri}/export, relayed), and erasing one (POST /humans/erase) after typing ERASE to confirm."""
+
+from __future__ import annotations
+
+from urllib.parse import quote
+
+from fastapi import APIRouter, Request
+from fastapi.responses import HTMLResponse, Response
+
+from segb_server.ui.csrf import check_csrf
+from segb_server.ui.forms import read_form
+from segb_server.ui.pages import ADMIN, backend, render, require, token
+
+router = APIRouter()
+
+CONFIRMATION = "ERASE"
+PEOPLE = """PREFIX oro: <http://kb.openrobots.org#>
+PREFIX foaf: <http://xmlns.com/foaf/0.1/>
+SELECT ?human (SAMPLE(?given) AS ?name) WHERE { ?human a oro:Human OPTIONAL { ?human foaf:firstName ?given } }
+GROUP BY ?human ORDER BY ?name ?human LIMIT 1000"""
+EXPORT_FORMATS = {"html": "text/html; charset=utf-8", "turtle": "text/turtle; charset=utf-8"}
+SUFFIX = {"html": "html", "turtle": "ttl"}
+
+
+async def _people(request: Request) -> list[dict[str, str]]:
+    answer = (await backend(request).sparql(PEOPLE, "json", token=token(request))).json()
+    return [
+        {"iri": row["human"]["value"], "name": row.get("name", {}).get("value", "")}
+        for row in answer["results"]["bindings"]
+    ]
+
+
+@router.get("/people", response_class=HTMLResponse)
+async def people_page(request: Request) -> HTMLResponse:
+    require(request, ADMIN)
+    return render(request, "people.html", {"people": await _people(request), "confirmation": CONFIRMATION})
+
+
+@router.post("/people/erase", response_class=HTMLResponse)
+async def erase(request: Request) -> HTMLResponse:
+    form = await read_form(request)
+    check_csrf(request, form)
+    context = {"confirmation": CONFIRMATION, "iri": form.get("iri", ""), "reason": form.get("reason", "")}
+    if form.get("confirm", "").strip() != CONFIRMATION:
+        problem = f"Type {CONFIRMATION} (in capitals) to confirm. Nothing was erased."
+        return render(request, "people.html", {**context, "problem": problem, "people": await _people(request)}, 400)
+    body = {"iri": form.get("iri", "").strip(), "reason": form.get("reason", "")}
+    erased = await backend(request).post_json("/humans/erase", body, token=token(request))
+    return render(
+        request, "people.html", {"confirmation": CONFIRMATION, "erased": erased, "people": await _people(request)}
+    )
+
+
+@router.get("/people/export")
+async def export(request: Request, iri: str, format: str = "html") -> Response:
+    require(request, ADMIN)
+    if format not in EXPORT_FORMATS:
+        return Response("format is html or turtle", status_code=422, media_type="text/plain")
+    answer = await backend(request).request(
+        "GET", f"/humans/{quote(iri, safe='')}/export", token=token(request), params={"format": format}
+    )
+    disposition = "inline" if format == "html" else "attachment"
+    headers = {"Content-Disposition": f'{disposition}; filename="person.{SUFFIX[format]}"'}
+    if policy := answer.headers.get("content-security-policy"):
+        headers["Content-Security-Policy"] = policy  # the page's own: its one stylesheet is inline
+    return Response(answer.content, media_type=EXPORT_FORMATS[format], headers=headers)
