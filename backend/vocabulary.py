@@ -30,6 +30,9 @@ PREFIXES: dict[str, str] = {
     "emoml": "http://www.gsi.upm.es/ontologies/onyx/vocabularies/emotionml/ns#",
 }
 
+# The one statement that credits an act to a robot: the graph's lanes and the explanations both read it from here.
+PERFORMED_BY = PREFIXES["segb"] + "wasPerformedBy"
+
 
 def sparql_prologue() -> str:
     """PREFIX lines for every known namespace, e.g. to prefill a query editor."""

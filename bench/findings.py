@@ -25,11 +25,11 @@ from bench.__main__ import LIVE_RATE, count_lines, segb_import, write_dataset
 from bench.client import Client
 from bench.measure import Latency
 from bench.server import segb_server
-from bench.workloads import LivePost, live_posts, robot_of
 from segb_server.backend.config import Settings
 from segb_server.backend.services.container import build_services
 from segb_server.backend.services.upkeep.delta import Delta
 from segb_server.backend.store.factory import open_store
+from tests.support.robot_posts import LivePost, live_posts, robot_of
 
 UPKEEP_POSTS = 60  # posts whose findings upkeep is timed in-process
 PAGE_REPEATS = 30

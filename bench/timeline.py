@@ -29,7 +29,7 @@ from bench.live import Background, publishing
 from bench.measure import Latency, machine, percentile
 from bench.probes import LagFigures, ReadinessProbe, wait_caught_up
 from bench.server import ROOT, ServerProcess, segb_server
-from bench.workloads import live_posts, robot_of
+from tests.support.robot_posts import live_posts, robot_of
 
 SECTION = "timeline"
 BUILT = re.compile(r"view timeline/(\S+) built in ([\d.]+) s")

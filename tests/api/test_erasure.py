@@ -20,6 +20,7 @@ import pytest
 
 from segb_server.backend.api.app import create_app
 from tests.conftest import make_settings, virtuoso_store
+from tests.support.in_process import InProcess
 from tests.support.live_server import LiveServer
 from tests.support.people import INES_NAME, INES_SAYS, OTHERS_SAY, ROBOT_REPLIES, Visit, care_home, filler
 from tests.support.settle import settle
@@ -171,13 +172,13 @@ def test_the_robots_reply_stays_without_its_link_to_her(erased: Erased) -> None:
     assert str(erased.visit.iris["a1_heard"]) not in str(about)  # prov:wasDerivedFrom her message: gone
 
 
-def test_erasing_asks_for_an_absolute_iri_and_a_reason_and_finds_someone(memory_api: LiveServer) -> None:
-    post = lambda body: httpx.post(f"{memory_api.url}/humans/erase", json=body)  # noqa: E731
+def test_erasing_asks_for_an_absolute_iri_and_a_reason_and_finds_someone(memory_api: InProcess) -> None:
+    post = lambda body: memory_api.client.post("/humans/erase", json=body)  # noqa: E731
     assert post({"iri": "maria", "reason": "x"}).status_code == 422
     assert post({"iri": "https://example.org/h/maria", "reason": "  "}).json()["error"] == "invalid_parameter"
     missing = post({"iri": "https://example.org/h/nobody", "reason": "request 1"})
     assert (missing.status_code, missing.json()["error"]) == (404, "not_found")
-    assert httpx.get(f"{memory_api.url}/ledger").json()["total"] == 0  # nothing was recorded
+    assert memory_api.client.get("/ledger").json()["total"] == 0  # nothing was recorded
 
 
 @pytest.mark.virtuoso

@@ -24,6 +24,8 @@ from tests.conftest import make_settings
 from tests.support.live_server import LiveServer
 from tests.support.people import INES_SAYS, ROBOT_REPLIES, Visit, care_home
 
+pytestmark = pytest.mark.processes  # checks bundles with the segb command
+
 WINDOW = {"since": "2026-03-10T09:00:00Z", "until": "2026-03-10T09:00:25Z"}
 Files = dict[str, bytes]
 

@@ -241,12 +241,12 @@ def test_the_html_file_holds_the_window_and_runs_only_its_own_script(published: 
     assert all(row["explain"] is None for row in rows)  # no server to explain them: no links
 
 
-def test_the_stream_sends_a_published_message_as_its_timeline_row(memory_api: LiveServer) -> None:
+def test_the_stream_sends_a_published_message_as_its_timeline_row(live_api: LiveServer) -> None:
     ari = "https://example.org/segb/robots/ari/v1/robot_ari"
-    answer = httpx.get(f"{memory_api.url}/timeline", params={"robot": ari}).json()
-    message = publish_message(memory_api.url, "Where did I leave my keys?")
+    answer = httpx.get(f"{live_api.url}/timeline", params={"robot": ari}).json()
+    message = publish_message(live_api.url, "Where did I leave my keys?")
     event = first_event(
-        f"{memory_api.url}/timeline/stream?" + str(httpx.QueryParams({"robot": ari, "kind": "message"})),
+        f"{live_api.url}/timeline/stream?" + str(httpx.QueryParams({"robot": ari, "kind": "message"})),
         {"Last-Event-ID": str(answer["last_event_id"])},
     )
     change = json.loads(event["data"])

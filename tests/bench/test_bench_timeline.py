@@ -8,8 +8,12 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from bench.report import kept_sections
 from bench.timeline import write_section
+
+pytestmark = pytest.mark.processes  # runs the bench command
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -11,6 +11,8 @@ import pytest
 from tests.cli.test_cli import segb
 from tests.conftest import FIXTURES
 
+pytestmark = pytest.mark.processes  # runs the segb command
+
 BOB = "https://example.org/segb/robots/mirror/v1/human_bob"
 
 

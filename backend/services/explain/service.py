@@ -18,7 +18,7 @@ from typing import Any
 
 from segb_server.backend.services.errors import NotFound
 from segb_server.backend.services.graph.service import GraphService, local_name
-from segb_server.backend.vocabulary import PREFIXES
+from segb_server.backend.vocabulary import PERFORMED_BY, PREFIXES
 
 SEGB, PROV, SCHEMA, ORO = PREFIXES["segb"], PREFIXES["prov"], PREFIXES["schema"], PREFIXES["oro"]
 ONYX, OA, MLS, SOSA = PREFIXES["onyx"], PREFIXES["oa"], PREFIXES["mls"], PREFIXES["sosa"]
@@ -31,7 +31,6 @@ PRODUCED = SEGB + "producedEntityResult"
 GENERATED = PROV + "generated"
 WAS_GENERATED_BY = PROV + "wasGeneratedBy"
 DERIVED_FROM = PROV + "wasDerivedFrom"
-PERFORMED_BY = SEGB + "wasPerformedBy"
 USED_MODEL = SEGB + "usedMLModel"
 ABOUT = SCHEMA + "about"
 SENDER = SCHEMA + "sender"

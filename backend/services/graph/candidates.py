@@ -7,9 +7,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 from segb_server.backend.services.graph.facts import RANK, instant_of
-from segb_server.backend.vocabulary import KINDS, PREFIXES
+from segb_server.backend.vocabulary import KINDS, PERFORMED_BY, PREFIXES
 
-PERFORMED_BY = PREFIXES["segb"] + "wasPerformedBy"
 ATTRIBUTED_TO = PREFIXES["prov"] + "wasAttributedTo"
 NOWHERE = -1  # the id of an IRI the index does not hold: matches no node
 
