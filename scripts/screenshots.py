@@ -30,6 +30,8 @@ PAGES = [
     ("reports", "/reports", None),
     ("report-ml-usage", "/reports/ml-usage", None),
     ("report-robot-states", "/reports/robot-states", None),
+    ("timeline", "/timeline?robot={robot}", "timeline"),
+    ("findings", "/findings", None),
     ("graph", "/kg-graph", "graph"),
     ("explain", "/explain?iri={reply}", None),
     ("query", "/query?example=reports/participants&query={participants}", None),
@@ -37,6 +39,7 @@ PAGES = [
     ("ledger", "/ledger", None),
     ("insert", "/logs/insert", "insert"),
     ("clear", "/logs/delete", None),
+    ("people", "/people", None),
     ("logs", "/logs", None),
     ("session", "/session", None),
     ("health", "/health", None),
@@ -74,6 +77,12 @@ def prepare(page: Page, action: str | None) -> None:
     if action == "graph":
         page.wait_for_selector("#graph[data-ready=true]", timeout=60_000)
         page.wait_for_timeout(300)
+    elif action == "timeline":
+        page.wait_for_selector(".tl-row", timeout=60_000)
+        page.focus(".tl-list")
+        for _ in range(6):  # the playhead on an event, as an investigator steps through them
+            page.keyboard.press("ArrowDown")
+        page.wait_for_timeout(300)
     elif action == "insert":
         page.fill("#insert-text", SAMPLE_LOG)
         page.click("#insert-validate")
@@ -85,7 +94,12 @@ def page_values(api: str) -> dict[str, str]:
     rows = httpx.get(f"{api}/reports/conversations", timeout=30).json()["rows"]
     reply = next(row["message"] for row in rows if row["speaker"] == "robot")
     query = "PREFIX foaf: <http://xmlns.com/foaf/0.1/>\nSELECT ?human ?name WHERE { ?human foaf:firstName ?name }"
-    return {"reply": str(httpx.QueryParams({"i": reply}))[2:], "participants": str(httpx.QueryParams({"q": query}))[2:]}
+    robot = next(row["robot"] for row in rows if row["speaker"] == "robot")
+    return {
+        "reply": str(httpx.QueryParams({"i": reply}))[2:],
+        "participants": str(httpx.QueryParams({"q": query}))[2:],
+        "robot": str(httpx.QueryParams({"r": robot}))[2:],
+    }
 
 
 @contextmanager

@@ -29,6 +29,7 @@ from segb_server.backend.services.shared_context.service import SharedContextSer
 from segb_server.backend.services.shared_context.state import STATE_FILE
 from segb_server.backend.services.sparql.catalog import Catalog
 from segb_server.backend.services.sparql.runner import QueryRunner, query_runner
+from segb_server.backend.services.timeline.findings_source import FindingSource
 from segb_server.backend.services.timeline.kinds import FOLDER as TIMELINE_FOLDER
 from segb_server.backend.services.timeline.kinds import KINDS, query_name
 from segb_server.backend.services.timeline.service import TimelineService
@@ -166,7 +167,9 @@ def build_services(
         snapshots=folder and folder / "snapshots",
     )
     view_files = (
-        [folder / name for name in (REPORTS_FILE, GRAPH_FILE, FINDINGS_FILE, SHAPE_FINDINGS_FILE)] if folder else []
+        [folder / name for name in (REPORTS_FILE, GRAPH_FILE, FINDINGS_FILE, SHAPE_FINDINGS_FILE, TIMELINE_FILE)]
+        if folder
+        else []
     )
     places = forgetting(writes.journal, shared_context, queries, server_log, view_files)
     erasure = ErasureService(store, catalog.get(ERASURE_RULE), writes, places)
@@ -185,7 +188,7 @@ def build_services(
         ),
         reports=ReportService(catalog, store, cache, kept_reports, lag=writes.lag),
         findings=findings,
-        timeline=TimelineService(timeline, kept_timeline.rows.last_change),
+        timeline=TimelineService([*timeline, FindingSource(findings)], kept_timeline.rows.last_change),
         graph=graph,
         explain=ExplainService(graph),
         shared_context=shared_context,

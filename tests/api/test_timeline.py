@@ -67,6 +67,17 @@ TIAGO = [
 MARIA = [event for event in ARI if event[1] != "state" and event[0] != DAY_BEFORE and "expressed" not in event[2]]
 MARIA.remove(("2026-03-10T09:00:15Z", "activity", "ARI logged an emotion annotation"))
 JUAN = [event for event in TIAGO if event[1] != "state"]
+# The audit rules' findings on ARI's timeline: each after the events of its instant (tests/support/investigation.py
+# logs a reply made without the dialogue model and a "Thanks!" nobody answers).
+ARI_FINDINGS = [
+    (
+        "2026-03-10T09:00:08Z",
+        "finding",
+        "Note: Reply without the dialogue model — ARI replied without using any model: “Congratulations, Maria!”",
+    ),
+    ("2026-03-10T09:00:20Z", "finding", "Warning: Message never answered — ARI never answered Maria: “Thanks!”"),
+]
+ARI_ALL = sorted(ARI + ARI_FINDINGS, key=lambda event: event[0])  # stable: a finding after its instant's events
 UNNAMED = "An unidentified speaker said “Is anyone there?” (heard by TIAGo)"
 
 
@@ -88,7 +99,10 @@ class Incident:
         return answer.json()["rows"]
 
     def told(self, **params: object) -> list[tuple[str, str, str]]:
-        return [(str(row["time"]), str(row["kind"]), str(row["sentence"])) for row in self.rows(**params)]
+        """The events robots logged, (time, kind, sentence); the audit rules' findings, which the timeline
+        shows among them, have a test of their own."""
+        rows = [row for row in self.rows(**params) if row["kind"] != "finding"]
+        return [(str(row["time"]), str(row["kind"]), str(row["sentence"])) for row in rows]
 
 
 @pytest.fixture(scope="module", params=STORE_KINDS)
@@ -127,6 +141,23 @@ def test_each_timeline_lists_every_event_once_in_time_order_with_honest_sentence
     assert published.told(human=published.iri("juan")) == JUAN
     ids = [row["id"] for row in published.rows(robot=published.iri("ari"))]
     assert len(ids) == len(set(ids))
+
+
+@pytest.mark.parametrize(("whose", "name"), [("robot", "ari"), ("robot", "tiago"), ("human", "maria")])
+def test_the_findings_of_the_window_are_on_its_timeline_as_the_findings_page_lists_them(
+    published: Incident, whose: str, name: str
+) -> None:
+    window = {whose: published.iri(name)}
+    listed = published.get("/findings", **window, limit=500).json()["findings"]
+    timed = [found for found in listed if found["time"]]
+    assert timed, "the incident breaks some rules"
+    on_timeline = [row for row in published.rows(**window) if row["kind"] == "finding"]
+    assert [(row["time"], row["iri"]) for row in on_timeline] == [(f["time"], f["focus"]) for f in timed]
+    for row, found in zip(on_timeline, timed, strict=True):
+        assert found["title"] in row["sentence"] and (found["message"] or "") in row["sentence"]
+        assert row["explain"] == "/explain?" + str(httpx.QueryParams({"iri": found["focus"]}))
+    everything = published.rows(**window)
+    assert [row["time"] for row in everything] == sorted(row["time"] for row in everything)  # merged in time order
 
 
 def test_a_late_sender_names_the_speaker_the_timeline_could_not_name_before(published: Incident) -> None:
@@ -184,7 +215,7 @@ def test_pages_through_next_give_every_event_once_in_order(published: Incident, 
             assert answer["next"] is None
             break
         params["after"] = answer["next"]
-    assert told == ARI
+    assert told == ARI_ALL  # the findings' source paged with the kinds' sources
 
 
 def test_a_cursor_serves_only_the_filters_it_was_made_for(published: Incident) -> None:
@@ -224,7 +255,7 @@ def test_csv_holds_the_rows_of_the_json(published: Incident) -> None:
     answer = published.get(robot=published.iri("ari"), format="csv")
     assert answer.headers["content-type"].startswith("text/csv")
     rows = list(csv.DictReader(io.StringIO(answer.text)))
-    assert [(row["time"], row["kind"], row["sentence"]) for row in rows] == ARI
+    assert [(row["time"], row["kind"], row["sentence"]) for row in rows] == ARI_ALL
     assert rows[1]["humans"] == published.iri("maria")
     same = published.rows(robot=published.iri("ari"))
     assert [row["iri"] for row in rows] == [row["iri"] for row in same]
@@ -237,7 +268,7 @@ def test_the_html_file_holds_the_window_and_runs_only_its_own_script(published: 
     assert "default-src 'none'; script-src 'sha256-" in html
     data = html.split('<script type="application/json" id="timeline-data">', 1)[1].split("</script>", 1)[0]
     rows = json.loads(data)
-    assert [(row["time"], row["kind"], row["sentence"]) for row in rows] == ARI
+    assert [(row["time"], row["kind"], row["sentence"]) for row in rows] == ARI_ALL
     assert all(row["explain"] is None for row in rows)  # no server to explain them: no links
 
 
@@ -292,7 +323,7 @@ def test_evaluated_in_full_the_timeline_says_the_same(kind: str, request: pytest
                 if not answer["has_more"]:
                     break
                 params["after"] = answer["next"]
-            assert told == ARI
+            assert told == ARI_ALL
     finally:
         if kind == "virtuoso":
             store.clear()

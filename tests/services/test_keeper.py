@@ -149,3 +149,44 @@ class CollectingView(RecordingView):
     def update(self, delta: Delta, through: int) -> None:
         self.triples += [quad.subject.value + " " + quad.object.value for quad in delta.quads]
         super().update(delta, through)
+
+
+class BlockedBuild(RecordingView):
+    """A view whose build waits for `release`: the views are being built meanwhile."""
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name)
+        self.release = threading.Event()
+
+    def stored_through(self) -> int | None:
+        return None  # never built: built at start
+
+    def build(self, through: int) -> None:
+        assert self.release.wait(timeout=10)
+        super().build(through)
+
+
+def test_the_views_being_built_are_named_while_the_store_holds_entries_they_miss(tmp_path: Path) -> None:
+    """What readiness reports as `views_building` (and what tests settle on): the views not built yet, but only
+    while there is something they miss (an empty store has nothing to build)."""
+    slow, quick = BlockedBuild("slow"), RecordingView("quick")
+    keeper = ViewKeeper(
+        OxigraphStore("urn:x:graph"), Journal(SqliteDatabase(tmp_path / "journal.sqlite3")), [quick, slow]
+    )
+    assert keeper.building(applied=0) == []
+    assert keeper.building(applied=3) == ["quick", "slow"]
+    keeper.start()
+    try:
+        deadline = time.monotonic() + 10
+        while not quick.ready:  # built in order: the quick one first, then the slow one waits
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        assert keeper.building(applied=3) == ["slow"]
+        slow.release.set()
+        while keeper.building(applied=3):
+            assert time.monotonic() < deadline, keeper.building(applied=3)
+            time.sleep(0.01)
+        assert slow.built and slow.ready and quick.ready
+    finally:
+        slow.release.set()
+        keeper.stop()

@@ -68,7 +68,8 @@ AskedDep = Annotated[Asked, Depends(asked)]
     description=(
         "Every logged event of the robot (or human) in the window, across kinds — shared events, perceptions, "
         "listening, decisions, responses, other activities, model invocations, observations, messages heard and "
-        "said, emotions read and expressed, robot states — one row each: `time`, `kind`, an honest one-line "
+        "said, emotions read and expressed, robot states, and the audit rules' findings (those with a time) — "
+        "one row each: `time`, `kind`, an honest one-line "
         "`sentence`, `robot`, `humans`, the `iri` it is about and links to its explanation (`explain`) and to the "
         "graph around it (`graph`). JSON `{robot, human, since, until, kinds, columns, rows, limit, has_more, "
         "next, served_from, last_event_id}`, or CSV with `Accept: text/csv` or `?format=csv`. Page with `after=` "

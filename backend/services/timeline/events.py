@@ -23,6 +23,7 @@ class TimelineEvent:
     time: str  # UTC, ISO 8601 with Z (as every answer writes times)
     rows: Rows  # the rows its query gave for it (several with several targets, models, properties, …)
     told: Told | None = None  # its sentence, when its source tells it itself (findings)
+    tag: str = ""  # tells apart events of one kind, key and time (two rules' findings about one message)
 
     @property
     def order(self) -> tuple[tuple[int, str], int]:
@@ -34,7 +35,7 @@ class TimelineEvent:
         told = self.told or tell(self.kind, self.rows)
         quoted = quote(self.key, safe="")  # urlencode per link took most of a page's time (5,000 rows: 0.47 s)
         return {
-            "id": f"{self.kind} {self.key} {self.time}",
+            "id": f"{self.kind} {self.key} {self.time}" + (f" {self.tag}" if self.tag else ""),
             "time": self.time,
             "kind": self.kind,
             "sentence": told.sentence,
