@@ -104,6 +104,9 @@ def test_the_timeline_equals_its_queries_evaluated_in_full_after_every_step(stor
 
 
 def test_message_speakers_are_the_conversations_reports(store_server: str) -> None:
+    """Who spoke a message is decided once, by the conversations report's `speaker`: the timeline's sentences and
+    the explanations must say the same after every step (late senders and re-publishes included). A message's
+    time is its activity's: the graph places it at the time the report gives it."""
     server = store_server
     history = History(2)
     speakers: set[str] = set()
@@ -132,4 +135,18 @@ def same_speakers(server: str) -> set[str]:
                 assert sentence.startswith(f"{human} said “") and sentence.endswith(f"(heard by {name})")
             else:
                 assert sentence.endswith(f"(heard by {name})") and not sentence.startswith(f"{name} said"), sentence
+            assert explained_as_said(server, str(row["message"])) == (row["speaker"] == "robot"), row
+        drawn = httpx.get(f"{server}/graph", params={"robot": iri, "limit": 5000}, timeout=60).json()["nodes"]
+        times = {node["id"]: node.get("time") for node in drawn}
+        for row in report:
+            assert times.get(row["message"]) == row["time"], (row, times.get(row["message"]))
     return speakers
+
+
+def explained_as_said(server: str, message: str) -> bool:
+    """Whether the explanation of `message` has the robot saying it (rather than hearing it)."""
+    story = httpx.get(f"{server}/explain", params={"iri": message}, timeout=60).json()
+    said = any(message == told["iri"] for step in story["steps"] for told in step["said"])
+    heard = any(message == told["iri"] for step in story["steps"] for told in step["heard"])
+    assert said != heard, story  # told once, one way
+    return said

@@ -273,7 +273,9 @@ class _Reader:
     ) -> bool:
         """The conversations report's rule for its `speaker` (sparql/reports/conversations.rq): the robot said a
         message it sent, or one whose log names no sender and does not mark it as heard (a human's input, or
-        what a listening activity produced). A human sender, or words heard from someone unnamed, are heard."""
+        what a listening activity produced). A human sender, or words heard from someone unnamed, are heard.
+        Read over the explanation's resources, not from the report's rows, which an explanation does not wait for;
+        tests/api/test_timeline_upkeep.py keeps the two (and the timeline's sentences) equal on random histories."""
         if any(self.get(sender).kind == "human" for sender in senders):
             return False
         if robot is not None and robot["iri"] in senders:
