@@ -3,6 +3,7 @@
     python -m bench.soak                       # 15 minutes, embedded store, 4 client threads
     python -m bench.soak --store virtuoso      # the same against a Virtuoso this command starts
     python -m bench.soak --minutes 2           # a shorter run
+    python -m bench.soak --compare             # views off, then on, in one run: the ratios the targets name
 
 Every post is one visit to the same robot (bench/one_robot.py: about 56 triples, a new visitor each time), so
 the robot's node gains children with every post for the whole run. Meanwhile an auditor reads the
@@ -41,7 +42,8 @@ AUDITOR_PAGES = (
     "/reports/ml-usage?limit=50",
     "/graph",
 )
-VIEW_FILES = ("reports.sqlite3", "graph.sqlite3")  # with their -wal files
+# Every view's file (with its -wal): the reports', the graph index, the findings (rules, shapes), the timeline.
+VIEW_FILES = ("reports.sqlite3", "graph.sqlite3", "findings.sqlite3", "shape-findings.sqlite3", "timeline.sqlite3")
 TARGETS = {"posts/s": 200.0, "lag p99 s": 2.0, "caught up s": 5.0, "page p50 ms": 50.0, "page p95 ms": 150.0}
 
 
@@ -79,6 +81,7 @@ class SoakFigures:
     store: str
     minutes: float
     clients: int
+    keep_views: bool
     posting: Posting
     samples: Samples
     caught_up_seconds: float | None
@@ -91,8 +94,9 @@ class SoakFigures:
         return self.posting.acknowledged / self.posting.seconds if self.posting.seconds else 0.0
 
     def markdown(self) -> str:
+        views = "" if self.keep_views else ", views off (KEEP_VIEWS=false)"
         lines = [
-            f"Soak: {self.store} store, one robot, {self.clients} client threads, {self.minutes:g} minutes "
+            f"Soak: {self.store} store, one robot, {self.clients} client threads, {self.minutes:g} minutes{views} "
             f"(`python -m bench.soak --store {self.store} --minutes {self.minutes:g}`).",
             "",
             "| figure | measured | target |",
@@ -145,9 +149,11 @@ class SoakFigures:
         return lines
 
 
-def soak(store: str, minutes: float, clients: int, auditor_interval: float, root: Path) -> SoakFigures:
+def soak(
+    store: str, minutes: float, clients: int, auditor_interval: float, root: Path, keep_views: bool = True
+) -> SoakFigures:
     robot = one_robot()
-    with _server(store, root) as (server, data_dir):
+    with _server(store, root, keep_views) as (server, data_dir):
         with Client(server.url) as client:
             client.publish(robot.first)
         posting, samples = Posting(), Samples()
@@ -174,14 +180,31 @@ def soak(store: str, minutes: float, clients: int, auditor_interval: float, root
         stored = _stored_triples(server.url)
         expected = len(robot.first.splitlines()) + posting.acknowledged * len(robot.visit(0).splitlines())
         disk = _disk(data_dir)
-    return SoakFigures(store, minutes, clients, posting, samples, caught_up, stored, expected, disk)
+    return SoakFigures(store, minutes, clients, keep_views, posting, samples, caught_up, stored, expected, disk)
+
+
+def compared(off: SoakFigures, on: SoakFigures) -> str:
+    """The ratios the targets name: posts/s with every view kept against none (≥ 0.8), and the server's memory
+    at the end, against the triples each server then held (≤ 1.2 at the same number of triples)."""
+    rss_off, rss_on = off.samples.rss_mib[-1][1], on.samples.rss_mib[-1][1]
+    per_off = rss_off / max(1, off.stored_triples) * 1e6
+    per_on = rss_on / max(1, on.stored_triples) * 1e6
+    return "\n".join([
+        "| views off / on | off | on | on ÷ off | target |",
+        "|---|--:|--:|--:|--:|",
+        f"| posts/s | {off.rate:.0f} | {on.rate:.0f} | {on.rate / off.rate if off.rate else 0:.2f} | ≥ 0.8 |",
+        f"| triples stored | {off.stored_triples:,} | {on.stored_triples:,} | | |",
+        f"| RSS at the end MiB | {rss_off:.0f} | {rss_on:.0f} | | |",
+        f"| RSS per million triples MiB | {per_off:.0f} | {per_on:.0f} | {per_on / per_off if per_off else 0:.2f} "
+        "| ≤ 1.2 |",
+    ])  # fmt: skip
 
 
 @contextlib.contextmanager
-def _server(store: str, root: Path) -> Iterator[tuple[ServerProcess, Path]]:
+def _server(store: str, root: Path, keep_views: bool = True) -> Iterator[tuple[ServerProcess, Path]]:
     data_dir = root / "data"
     data_dir.mkdir()
-    env = {"LOGGING_LEVEL": "WARNING"}
+    env = {"LOGGING_LEVEL": "WARNING", "KEEP_VIEWS": "true" if keep_views else "false"}
     if store == "virtuoso":
         from tests.support.virtuoso import VirtuosoProcess
 
@@ -312,11 +335,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--clients", type=int, default=4)
     parser.add_argument("--auditor-interval", type=float, default=2.0)
     parser.add_argument("--json", type=Path, help="also write the figures as JSON to this file")
+    parser.add_argument("--compare", action="store_true", help="run with views off first, then on: the ratios")
     args = parser.parse_args(argv)
     gc.disable()  # the bench's own collections would be counted in whichever request was in flight
+    off = None
+    if args.compare:
+        with tempfile.TemporaryDirectory(prefix="segb-soak-") as root:
+            off = soak(args.store, args.minutes, args.clients, args.auditor_interval, Path(root), keep_views=False)
+        print(off.markdown() + "\n")
     with tempfile.TemporaryDirectory(prefix="segb-soak-") as root:
         figures = soak(args.store, args.minutes, args.clients, args.auditor_interval, Path(root))
     print(figures.markdown())
+    if off is not None:
+        print("\n" + compared(off, figures))
     print("\nmachine: " + "; ".join(f"{k} {v}" for k, v in machine().items()))
     if args.json:
         args.json.write_text(json.dumps({"markdown": figures.markdown(), "rate": figures.rate}, indent=2))
