@@ -1,0 +1,31 @@
+"""The soak runs end to end for a few seconds, views off then on, and prints its figures and their ratios
+(figures are not asserted: nothing lost is)."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.processes  # runs the bench, which starts servers
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_a_short_soak_compares_views_off_and_on_and_loses_nothing() -> None:
+    run = subprocess.run(
+        [sys.executable, "-m", "bench.soak", "--minutes", "0.1", "--clients", "2", "--compare"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert run.returncode == 0, run.stderr[-3000:]
+    out = run.stdout
+    assert "views off (KEEP_VIEWS=false)" in out
+    assert re.search(r"\| posts/s \| \d+ \| \d+ \| [\d.]+ \| ≥ 0\.8 \|", out), out
+    assert len(re.findall(r"\| lost \(triples acknowledged, not stored\) \| 0 of [\d,]+ \| 0 \|", out)) == 2, out
+    assert "timeline.sqlite3" in out  # every view's file is counted on disk
