@@ -60,22 +60,26 @@ def test_the_timeline_shows_every_event_in_order_and_filters_by_kind_and_text(in
         "TIAGo said “Second floor, Juan.”",
         "TIAGo ran emotion recognition",
         "TIAGo read anger 0.8 on Juan",
+        "Note: Strong negative emotion read on a human — TIAGo read anger 0.8 on Juan",  # an audit rule's finding
         "TIAGo's state: arm_calibrated true, battery_level 41.5 %",
         "TIAGo listened (Listen)",
         "Juan said “Is anyone there?” (heard by TIAGo)",
+        "Warning: Message never answered — TIAGo never answered Juan: “Is anyone there?”",
         "TIAGo decided Guide Juan to the pharmacy",
     ]
-    assert page.locator(".tl-shown").inner_text() == "12 of 12 events shown"
+    assert page.locator(".tl-shown").inner_text() == "14 of 14 events shown"
 
     page.locator(".tl-kind-choice", has_text="message").locator("input").uncheck()
     page.locator(".tl-kind-choice", has_text="listening").locator("input").uncheck()
     assert "Juan said “Where is the pharmacy?” (heard by TIAGo)" not in shown(page)
-    assert page.locator(".tl-shown").inner_text() == "7 of 12 events shown"
+    assert page.locator(".tl-shown").inner_text() == "9 of 14 events shown"
     page.fill(".tl-find input", "juan")
-    page.wait_for_function("() => document.querySelector('.tl-shown').textContent.startsWith('3 of')")
+    page.wait_for_function("() => document.querySelector('.tl-shown').textContent.startsWith('5 of')")
     assert shown(page) == [
         "Shared event about Juan: “Where is the pharmacy?”",
         "TIAGo read anger 0.8 on Juan",
+        "Note: Strong negative emotion read on a human — TIAGo read anger 0.8 on Juan",
+        "Warning: Message never answered — TIAGo never answered Juan: “Is anyone there?”",
         "TIAGo decided Guide Juan to the pharmacy",
     ]
     assert page.console_errors == []
@@ -89,7 +93,7 @@ def test_the_keyboard_moves_the_playhead_and_names_the_moment(incident: Scenario
     assert current(page) == "ARI detected Maria"  # the third event
     highlighted(page, "ARI detected Maria")
     announced = page.locator(".tl [aria-live='polite']").inner_text()
-    assert announced == "2026-03-10 09:00:00.000, perception: ARI detected Maria (3 of 19)"
+    assert announced == "2026-03-10 09:00:00.000, perception: ARI detected Maria (3 of 21)"
     page.wait_for_function("() => location.hash === '#t=2026-03-10T09:00:00Z'")
     assert page.locator(".tl-current .tl-time").inner_text() == "2026-03-10 09:00:00.000"
     assert page.locator(".tl-current a", has_text="Why did it happen?").get_attribute("href") == (
@@ -104,9 +108,9 @@ def test_the_keyboard_moves_the_playhead_and_names_the_moment(incident: Scenario
     # Zoom from the event under the playhead to the last: the list keeps the window's events after it only.
     page.keyboard.press("ArrowDown")
     page.keyboard.press("[")
-    assert page.locator(".tl-shown").inner_text() == "18 of 19 events shown"
+    assert page.locator(".tl-shown").inner_text() == "20 of 21 events shown"
     page.keyboard.press("Escape")
-    assert page.locator(".tl-shown").inner_text() == "19 of 19 events shown"
+    assert page.locator(".tl-shown").inner_text() == "21 of 21 events shown"
     page.keyboard.press("Enter")  # explains the current event
     page.wait_for_url("**/explain?iri=*")
     assert "Why did it happen?" in page.locator("h1").inner_text()
@@ -137,7 +141,7 @@ def test_a_published_event_joins_the_open_timeline(incident: Scenario, ui_stack,
     arrived = page.locator(".tl-row.fresh", has_text="Maria said “Live: is the pharmacy open?” (heard by ARI)")
     arrived.wait_for(timeout=10_000)
     assert page.evaluate("window.__sameDocument") is True
-    assert page.locator(".tl-shown").inner_text() == "21 of 21 events shown"  # its listening and its message
+    assert page.locator(".tl-shown").inner_text() == "23 of 23 events shown"  # its listening and its message
     assert page.console_errors == []
 
 
@@ -178,7 +182,7 @@ def test_the_html_file_opens_offline_with_the_same_viewer(incident: Scenario, ui
     page.route("**/*", lambda route: route.abort() if not route.request.url.startswith("file:") else route.continue_())
     page.goto(path.as_uri() + "#t=2026-03-10T09:00:12Z")
     highlighted(page, "TIAGo ran emotion recognition")
-    assert len(shown(page)) == 12
+    assert len(shown(page)) == 14  # 12 events and 2 findings
     page.focus(".tl-list")
     page.keyboard.press("ArrowDown")
     assert current(page) == "TIAGo read anger 0.8 on Juan"
