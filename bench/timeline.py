@@ -199,7 +199,7 @@ def section(
     command = " ".join(["python -m bench.timeline", *argv])
     lines = [
         f"<!-- section: {SECTION} -->",
-        "### 7. The investigator's timeline under live ingest",
+        "### 10. The investigator's timeline under live ingest",
         "",
         f"Measured {datetime.now(UTC):%Y-%m-%d} with `{command}` ({wall:.0f} s), {at_start['code']}, on the embedded"
         f" store loaded with `segb import` ({triples:,} triples, {load_seconds:.0f} s): the reports' dataset of"
