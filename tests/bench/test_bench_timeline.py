@@ -31,7 +31,7 @@ def test_the_timeline_bench_writes_its_section_and_keeps_the_rest(tmp_path: Path
     assert run.returncode == 0, run.stderr[-3000:]
     page = output.read_text()
     assert page.startswith("# Performance\n\n### 1. Small posts\n\nkept as it is\n")
-    assert "### 7. The investigator's timeline under live ingest" in page
+    assert "### 10. The investigator's timeline under live ingest" in page
     first = re.search(r"\| first page \(1,000 events\) \| 2 \| ([\d.]+) \| ([\d.]+) \|", page)
     assert first is not None and float(first.group(1)) > 0, page
     heard = re.search(r"\| a post's 201 to its message on `/timeline/stream` \| (\d+) \|", page)
