@@ -12,7 +12,7 @@ import pytest
 from segb_server.backend.api.app import create_app
 from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.conftest import make_settings, virtuoso_store
-from tests.support.in_process import InProcess
+from tests.support.in_process import InProcess, Server, http
 from tests.support.settle import settle
 from tests.support.virtuoso import VirtuosoProcess
 
@@ -45,7 +45,7 @@ def test_readiness_follows_virtuoso_down_and_back_without_a_restart(tmp_path: Pa
             assert "kept in the journal" in waiting.json()["detail"] and "virtuoso" in waiting.json()["detail"]
 
             process.start()
-            assert wait_until_ready(server).status_code == 200
+            assert wait_until_ready(server.client).status_code == 200
             settle(server.client)  # the kept post applied and in the reports' rows: nothing behind, nothing to say
             back = server.get("/healthz/ready")
             assert (back.status_code, back.text) == (200, '{"ready": true, "virtuoso": true}')
@@ -57,11 +57,12 @@ def test_readiness_follows_virtuoso_down_and_back_without_a_restart(tmp_path: Pa
         process.stop()
 
 
-def wait_until_ready(server: InProcess, timeout: float = 30) -> httpx.Response:
-    """Readiness once the store answers and the journal is applied (the applier retries on its own)."""
+def wait_until_ready(server: Server, timeout: float = 30) -> httpx.Response:
+    """Readiness once the store answers and the journal is applied (the applier retries on its own); `server`:
+    a live server's URL or the client of an app served in process."""
     deadline = time.monotonic() + timeout
     while True:
-        answer = server.get("/healthz/ready")
+        answer = http(server, "GET", "/healthz/ready")
         if (answer.status_code == 200 and "apply_lag" not in answer.json()) or time.monotonic() > deadline:
             return answer
         time.sleep(0.1)

@@ -53,7 +53,7 @@ def test_while_virtuoso_is_away_posts_are_kept_up_to_the_quota_then_refused_with
             assert "JOURNAL_MAX_BACKLOG" in refused.json()["detail"]
 
             virtuoso.start()
-            assert wait_until_ready(f"{server.url}/healthz/ready").status_code == 200
+            assert wait_until_ready(server.url).status_code == 200
             assert post(server.url, 15).status_code == 201  # accepted again once the backlog is applied
             settle(server.url)
             assert store.count() == 10 + len([a for a in kept if a.status_code == 201]) + 1
