@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import os
 import queue
 import shutil
 import threading
+import uuid
 from collections.abc import Callable, Iterator, Sequence
 from itertools import islice
 from pathlib import Path
@@ -40,11 +42,13 @@ class OxigraphStore:
         self.kind = "oxigraph" if path is not None else "memory"
         self.graph_uri = graph_uri
         self.path = path
+        self.live: Path | None = None  # the directory the store is in (see `live_directory`)
         if path is not None:
             finish_rewrite(path)
-            path.mkdir(parents=True, exist_ok=True)
+            self.live = live_directory(path)
+            self.live.mkdir(parents=True, exist_ok=True)
             try:
-                self._store = OxStore(str(path))
+                self._store = OxStore(str(self.live))
             except OSError as error:
                 if "LOCK" in str(error):
                     raise StoreUnavailable(
@@ -52,6 +56,7 @@ class OxigraphStore:
                         "through that server (GET /events)"
                     ) from None
                 raise StoreUnavailable(f"cannot open the embedded store at {path}: {error}") from error
+            tidy_generations(path, self.live)  # only now: holding the store's lock, no other process uses them
         else:
             self._store = OxStore()
         self._write_lock = threading.Lock()
@@ -90,10 +95,16 @@ class OxigraphStore:
             copy.add(_cursor(through))
             copy.flush()
             del copy
-            fresh.rename(self.path.with_name(self.path.name + REWRITTEN))
-            self._store = OxStore()  # lets the old files go (readers still holding it keep it open)
-            finish_rewrite(self.path)
-            self._store = OxStore(str(self.path))
+            # The copy never takes the old store's path: RocksDB names its files by path, and the old store stays
+            # open while a reader still holds it (a query's answer, an export) — what it then writes or deletes
+            # (a compaction's inputs, a new MANIFEST) must not land among the copy's files, numbered alike. The
+            # copy gets a directory of its own, named in the pointer file, whose writing is the commit point.
+            generation = self.path.with_name(f"{self.path.name}{GENERATION}{uuid.uuid4().hex[:12]}")
+            fresh.rename(generation)
+            point_to(self.path, generation)
+            old, self.live = self.live or self.path, generation
+            self._store = OxStore(str(generation))
+            shutil.rmtree(old, ignore_errors=True)  # its text leaves the disk (open files: once their readers end)
 
     def _set_cursor(self, through: int) -> None:
         old = self._cursor_quads()
@@ -158,12 +169,52 @@ class OxigraphStore:
 
 _END = object()
 REWRITING = ".rewriting"  # a copy being written (dropped if found at start: the old store is whole)
-REWRITTEN = ".rewritten"  # a finished copy, to be swapped in
+REWRITTEN = ".rewritten"  # a finished copy of an earlier version, to be swapped in
+GENERATION = ".gen-"  # a finished copy in a directory of its own: the store once the pointer names it
+POINTER = ".current"  # a file naming the directory the store is in, when it is not `path` itself
+
+
+def live_directory(path: Path) -> Path:
+    """The directory the store at `path` is in: `path`, or the copy the pointer file names."""
+    pointer = path.with_name(path.name + POINTER)
+    if pointer.is_file():
+        named = path.with_name(pointer.read_text(encoding="utf-8").strip())
+        if named.is_dir():
+            return named
+    return path
+
+
+def point_to(path: Path, generation: Path) -> None:
+    """Name `generation` as the store's directory, atomically and durably (the rewrite's commit point)."""
+    pointer = path.with_name(path.name + POINTER)
+    written = pointer.with_name(pointer.name + ".tmp")
+    with written.open("w", encoding="utf-8") as out:
+        out.write(generation.name)
+        out.flush()
+        os.fsync(out.fileno())
+    written.replace(pointer)
+    directory = os.open(path.parent, os.O_RDONLY)
+    try:
+        os.fsync(directory)
+    finally:
+        os.close(directory)
+
+
+def tidy_generations(path: Path, live: Path) -> None:
+    """Remove what an earlier rewrite left: copies unfinished or replaced, and the store's first directory once
+    a copy has replaced it."""
+    shutil.rmtree(path.with_name(path.name + REWRITING), ignore_errors=True)
+    for directory in path.parent.glob(f"{path.name}{GENERATION}*"):
+        if directory != live:
+            shutil.rmtree(directory, ignore_errors=True)
+    if live != path:
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        path.with_name(path.name + POINTER).unlink(missing_ok=True)
 
 
 def finish_rewrite(path: Path) -> None:
-    """Complete or undo a rewrite a crash interrupted: a finished copy replaces the store; an unfinished one goes."""
-    shutil.rmtree(path.with_name(path.name + REWRITING), ignore_errors=True)
+    """Complete a rewrite of an earlier version that a crash interrupted: its finished copy replaces the store."""
     rewritten = path.with_name(path.name + REWRITTEN)
     old = path.with_name(path.name + ".old")
     if rewritten.is_dir():
