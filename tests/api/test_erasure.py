@@ -213,6 +213,7 @@ def test_an_erasure_on_virtuoso_removes_her_triples_in_their_received_spelling(
         store.close()
 
 
+@pytest.mark.slow  # a store big enough for the erasure to take seconds: the full tier
 def test_a_post_during_an_erasure_is_answered_within_its_timeout_and_kept(tmp_path: Path) -> None:
     """While the embedded store is written anew without her (seconds at 150,000 triples), a robot's post is not
     held behind that step: it is journaled, answered within INGEST_APPLY_TIMEOUT_SECONDS (201, or 503 saying it is

@@ -83,7 +83,7 @@ def listed_findings(url: str, params: dict[str, str]) -> Counter[tuple[str, str,
         after = body["next"]
 
 
-@pytest.mark.parametrize("seed", [3, 4])
+@pytest.mark.parametrize("seed", [3, pytest.param(4, marks=pytest.mark.slow)])  # a second history: the full tier
 def test_the_timeline_equals_its_queries_evaluated_in_full_after_every_step(store_server: str, seed: int) -> None:
     server = store_server
     history = History(seed)
