@@ -134,7 +134,7 @@ def measure_size(robot: OneRobot, triples: int, root: Path) -> SizeFigures:
 def _watch_views(services: Services) -> dict[str, int]:
     """Count the SQLite steps of each view's database (its writer's connection)."""
     ticks = {"reports": 0, "graph": 0}
-    databases = {"reports": services.reports.maintainer.rows.db if services.reports.maintainer else None,
+    databases = {"reports": services.reports.change_log().db if services.reports.served_by_rows() else None,
                  "graph": services.graph.index.db}  # fmt: skip
     for name, database in databases.items():
         if database is not None:

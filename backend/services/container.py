@@ -94,8 +94,7 @@ class Services:
             self.retention.stop()
         self.writes.close()
         self.graph.close()
-        if self.reports.maintainer is not None:
-            self.reports.maintainer.rows.close()
+        self.reports.close()
         if self.findings.kept is not None:
             self.findings.kept.rows.close()
         if self.findings.shapes is not None:

@@ -17,7 +17,6 @@ from fastapi import APIRouter, Query, Request
 from fastapi.responses import StreamingResponse
 
 from segb_server.backend.api.deps import Auditor, ServicesDep
-from segb_server.backend.services.errors import NotFound
 from segb_server.backend.services.reports.service import FOLDER
 from segb_server.backend.services.upkeep.kept_queries.rows import KeptRows
 from segb_server.backend.services.upkeep.signal import ChangeSignal
@@ -47,11 +46,9 @@ async def stream(
     request: Request, services: ServicesDep, principal: Auditor, report: list[str] = Query([])
 ) -> StreamingResponse:
     wanted = {services.reports.report(name).name for name in report}  # 404 for an unknown report, up front
-    maintainer = services.reports.maintainer
-    if maintainer is None:
-        raise NotFound("This server keeps no live reports.")
-    served = maintainer.served()
-    feed = ChangeFeed(maintainer.rows, event_id(request.headers.get("last-event-id", "")))
+    change_log = services.reports.change_log()  # 404 when no report is kept as rows
+    served = services.reports.served_by_rows()
+    feed = ChangeFeed(change_log, event_id(request.headers.get("last-event-id", "")))
     # Where a new reader starts is read before the answer's headers go out: a change made as soon as the
     # reader sees them is after it, and is sent.
     await feed.start()
@@ -65,7 +62,7 @@ async def stream(
             events.append(feed.event("change", data, last=index == len(grouped) - 1))
         return events
 
-    return event_stream(request, feed.opening, changes, maintainer.rows.changed)
+    return event_stream(request, feed.opening, changes, change_log.changed)
 
 
 @router.get(

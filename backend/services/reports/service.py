@@ -12,6 +12,7 @@ from segb_server.backend.services.ops.result_cache import DataVersion, ResultCac
 from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, Catalog, CatalogQuery
 from segb_server.backend.services.sparql.paging import evaluated_page
 from segb_server.backend.services.upkeep.kept_queries.projection import KeptQueries
+from segb_server.backend.services.upkeep.kept_queries.rows import KeptRows
 from segb_server.backend.services.values import JsonValue, json_value
 from segb_server.backend.services.writing.write_path import Lag
 from segb_server.backend.store.base import Bindings, Store
@@ -114,7 +115,7 @@ class ReportService:
         catalog: Catalog,
         store: Store,
         cache: ResultCache | None = None,
-        maintainer: KeptQueries | None = None,
+        kept: KeptQueries | None = None,
         lag: Callable[[], Lag] | None = None,
     ) -> None:
         """`lag`: how far the store and the views are behind the journal (the write path's), for answers that
@@ -122,8 +123,23 @@ class ReportService:
         self.catalog = catalog
         self.store = store
         self.cache = cache or ResultCache(DataVersion(), enabled=False)
-        self.maintainer = maintainer
+        self._kept = kept
         self._lag = lag
+
+    def change_log(self) -> KeptRows:
+        """Where the live stream reads which keys' rows changed (and waits for changes); NotFound when no report
+        is kept as rows."""
+        if self._kept is None:
+            raise NotFound("This server keeps no live reports.")
+        return self._kept.rows
+
+    def served_by_rows(self) -> dict[str, list[str]]:
+        """Each kept query's name → the reports its rows serve (its own, and the presets sharing them)."""
+        return self._kept.served() if self._kept is not None else {}
+
+    def close(self) -> None:
+        if self._kept is not None:
+            self._kept.rows.close()
 
     def reports(self) -> list[CatalogQuery]:
         return self.catalog.under(FOLDER)
@@ -154,17 +170,17 @@ class ReportService:
     ) -> ReportTable:
         query = self.report(name)
         bindings = query.bindings(filters)
-        if self.maintainer is not None:
+        if self._kept is not None:
             bound = {p: bindings[PARAMETER_VARIABLE_PREFIX + p] for p in query.parameters}
-            page = self.maintainer.page(query.name, bound, limit, offset, after)
+            page = self._kept.page(query.name, bound, limit, offset, after)
             if page is not None:
-                columns = [name[1:] for name in self.maintainer.reports[query.name].layout.plan.columns]
+                columns = self._kept.columns(query.name)
                 return ReportTable(
                     query, columns, page.rows, limit, offset, page.has_more, page.after, "rows", page.last_event_id
                 )
         if after is not None:
             # Answering the first page instead would send a client paging by cursor round in circles.
-            if self.maintainer is None or query.name not in self.maintainer.reports:
+            if self._kept is None or query.name not in self._kept.reports:
                 raise InvalidParameter("after", f"report '{name}' is evaluated in full: page it with `offset`")
             raise Conflict(
                 f"Report '{name}' is being rebuilt and cannot resume from a cursor now; start again from its first "

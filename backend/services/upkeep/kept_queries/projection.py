@@ -74,6 +74,10 @@ class KeptQueries:
         if dropped:
             logger.info("dropped the rows of reports no longer kept: %s", ", ".join(dropped))
 
+    def columns(self, name: str) -> list[str]:
+        """The columns of a kept query's rows, in its SELECT's order (without `?`)."""
+        return [column[1:] for column in self.reports[name].layout.plan.columns]
+
     def served(self) -> dict[str, list[str]]:
         """Each projection's name → the reports its rows serve: its own, and the presets sharing them."""
         served: dict[str, list[str]] = {}
