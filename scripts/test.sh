@@ -21,7 +21,7 @@ install_python_packages() {
 
 if [ "${1:-}" = "--fast" ]; then
   shift
-  python3 -c "import segb_server.backend, pytest, hypothesis, schemathesis" 2>/dev/null || install_python_packages
+  python3 -c "import segb_server.backend, pytest, hypothesis, schemathesis, xdist" 2>/dev/null || install_python_packages
   # The tests' stores, journals and views in memory where /dev/shm is: the fast tier spends a fifth of its time
   # waiting for the disk's syncs otherwise. Removed when the run ends.
   if [ -d /dev/shm ] && [ -w /dev/shm ]; then
