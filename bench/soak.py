@@ -336,6 +336,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--auditor-interval", type=float, default=2.0)
     parser.add_argument("--json", type=Path, help="also write the figures as JSON to this file")
     parser.add_argument("--compare", action="store_true", help="run with views off first, then on: the ratios")
+    parser.add_argument("--views-off", action="store_true", help="only the run with the views off (KEEP_VIEWS=false)")
     args = parser.parse_args(argv)
     gc.disable()  # the bench's own collections would be counted in whichever request was in flight
     off = None
@@ -344,7 +345,9 @@ def main(argv: list[str] | None = None) -> int:
             off = soak(args.store, args.minutes, args.clients, args.auditor_interval, Path(root), keep_views=False)
         print(off.markdown() + "\n")
     with tempfile.TemporaryDirectory(prefix="segb-soak-") as root:
-        figures = soak(args.store, args.minutes, args.clients, args.auditor_interval, Path(root))
+        figures = soak(
+            args.store, args.minutes, args.clients, args.auditor_interval, Path(root), keep_views=not args.views_off
+        )
     print(figures.markdown())
     if off is not None:
         print("\n" + compared(off, figures))

@@ -9,6 +9,7 @@ from typing import Protocol
 
 from pyoxigraph import BlankNode, Literal, NamedNode, Quad, QueryBoolean, QuerySolutions, Triple
 
+from segb_server.backend.store.solutions import read_whole
 from segb_server.backend.store.sparql_text import code_only
 
 Term = NamedNode | BlankNode | Literal
@@ -117,21 +118,20 @@ def select(store: Store, sparql: str, bindings: Bindings | None = None) -> Selec
 
 
 def rows_of(sparql: str, solutions: QuerySolutions) -> SelectResult:
-    """The rows of a store's answer to `sparql`. A SELECT DISTINCT answer is made distinct here too: Virtuoso 7
-    answers some DISTINCT queries (OPTIONALs and BINDs over EXISTS) with repeated solutions, depending on the
-    plan its statistics choose."""
-    columns = [variable.value for variable in solutions.variables]
+    """The rows of a store's answer to `sparql`, read whole (`read_whole`). A SELECT DISTINCT answer is made
+    distinct here too: Virtuoso 7 answers some DISTINCT queries (OPTIONALs and BINDs over EXISTS) with repeated
+    solutions, depending on the plan its statistics choose."""
+    columns, answer = read_whole(solutions)
     rows = []
     seen: set[tuple[object, ...]] = set()
     distinct = _DISTINCT.match(code_only(_head(sparql))) is not None
-    for solution in solutions:
-        values = tuple(solution)  # in the order of `columns`; far cheaper than a lookup by name each
+    for values in answer:
         if distinct:
             if values in seen:
                 continue
             seen.add(values)
         rows.append({name: value for name, value in zip(columns, values, strict=True) if value is not None})
-    return SelectResult(columns=columns, rows=rows)
+    return SelectResult(columns=columns, rows=rows)  # type: ignore[arg-type]
 
 
 def _head(sparql: str) -> str:

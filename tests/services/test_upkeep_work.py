@@ -23,6 +23,9 @@ from rdflib import Graph
 from segb_server.backend.config import PACKAGE_ROOT
 from segb_server.backend.services.explain.service import TOLD_LITERALS
 from segb_server.backend.services.graph.index import GraphIndex
+from segb_server.backend.services.rules.catalog import RuleCatalog
+from segb_server.backend.services.rules.shape_view import ShapeFindings
+from segb_server.backend.services.rules.shapes import ShapeRule
 from segb_server.backend.services.sparql.catalog import Catalog
 from segb_server.backend.services.upkeep.delta import Delta
 from segb_server.backend.services.upkeep.kept_queries.projection import KeptQueries
@@ -95,16 +98,30 @@ class Views:
         return Work(self.store.queries, self.store.rows, dict(self.ticks))
 
 
-def kept_views(tmp_path: Path) -> Views:
-    store = CountingStore(tmp_path / "store")
+def kept_views(tmp_path: Path, counting: type[CountingStore] = CountingStore) -> Views:
+    """Every view a server keeps, as `build_services` makes them: the reports' rows, the timeline's kinds, the
+    graph index, the SPARQL rules' findings and the SHACL rules' findings."""
+    store = counting(tmp_path / "store")
+    catalog = Catalog(PACKAGE_ROOT / "sparql")
+    rules = RuleCatalog(PACKAGE_ROOT / "rules")
     reports = KeptQueries(store, KeptRows(tmp_path / "reports.sqlite3"))
-    for query in Catalog(PACKAGE_ROOT / "sparql").under("reports"):
+    for query in catalog.under("reports"):
         reports.add(query)
+    timeline = KeptQueries(store, KeptRows(tmp_path / "timeline.sqlite3"))
+    for query in catalog.under("timeline"):
+        timeline.add(query)
+    findings = KeptQueries(store, KeptRows(tmp_path / "findings.sqlite3"))
+    for rule in rules.sparql():
+        assert rule.query is not None
+        findings.add(rule.query)
+    shapes = ShapeFindings(store, [ShapeRule(rule) for rule in rules.shapes()], tmp_path / "shape-findings.sqlite3")
     index = GraphIndex(store, tmp_path / "graph.sqlite3", detail_literals=TOLD_LITERALS)
-    ticks = {"reports": 0, "graph": 0}
-    for name, database in (("reports", reports.rows.db), ("graph", index.db)):
+    databases = {"reports": reports.rows.db, "timeline": timeline.rows.db, "findings": findings.rows.db,
+                 "shapes": shapes.db, "graph": index.db}  # fmt: skip
+    ticks = dict.fromkeys(databases, 0)
+    for name, database in databases.items():
         database.writer().set_progress_handler(_counter(ticks, name), STEPS_PER_TICK)
-    return Views(store, [*reports.views(), index], ticks)
+    return Views(store, [*reports.views(), *timeline.views(), index, *findings.views(), shapes], ticks)
 
 
 def _counter(ticks: dict[str, int], name: str) -> Callable[[], int]:
@@ -170,3 +187,46 @@ def test_a_posts_upkeep_work_does_not_grow_with_the_robots_history(
     assert after_long.rows <= after_short.rows * ALLOWED, (after_short, after_long)
     for view, steps in after_short.steps.items():
         assert after_long.steps[view] <= steps * ALLOWED + 2, (view, after_short, after_long)
+
+
+class RecordingStore(CountingStore):
+    """The counting store, keeping the texts of the queries asked too."""
+
+    def __init__(self, path: Path) -> None:
+        super().__init__(path)
+        self.texts: list[str] = []
+
+    def query(self, sparql: str, bindings: Any = None, timeout: float | None = None) -> QueryResult:
+        self.texts.append(sparql)
+        return super().query(sparql, bindings, timeout)
+
+
+def test_a_batch_asks_each_filter_question_once_for_every_view(tmp_path: Path) -> None:
+    # The reports and the timeline's kinds filter by the same robot and human: the pairs a batch adds to those
+    # filters are the same questions for each of them, asked of the store once.
+    views = kept_views(tmp_path, RecordingStore)
+    store = views.store
+    assert isinstance(store, RecordingStore)
+    posts = receptionist_posts(12)
+    views.history(posts[:10])
+    store.texts.clear()
+    views.post([quad for post in posts[10:] for quad in post])
+    filters = [text for text in store.texts if "?param_" in text.partition("WHERE")[0]]
+    assert filters, "the batch asked no filter's pairs"
+    assert len(filters) == len(set(filters)), [text[:200] for text in filters if filters.count(text) > 1][:3]
+
+
+def test_a_shapes_targets_among_a_batchs_nodes_are_one_row_each(tmp_path: Path) -> None:
+    # Asking whether a node is a target must not read everything that makes it one: a SPARQL target
+    # (`?this ?p ?o`) joined would answer a row per statement of the node, and a hub's statements never stop
+    # growing.
+    store = CountingStore(tmp_path / "store")
+    hub = "https://example.org/robots/hub"
+    lines = [f'<{hub}> <https://example.org/said> "line {n}" .' for n in range(500)]
+    lines.append(f"<{hub}> <http://www.w3.org/1999/02/22-rdf-syntax-ns#type> <https://example.org/Robot> .")
+    store.apply(list(parse("\n".join(lines).encode(), RdfFormat.N_TRIPLES)), 1)
+    rules = {rule.id: ShapeRule(rule) for rule in RuleCatalog(PACKAGE_ROOT / "rules").shapes()}
+    store.queries = store.rows = 0
+    targets = rules["subject-without-type"].targets(store, [f"<{hub}>", "<https://example.org/nothing>"])
+    assert {node for nodes in targets.values() for node in nodes} == {f"<{hub}>"}
+    assert store.rows <= store.queries, (store.queries, store.rows)

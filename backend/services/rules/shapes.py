@@ -24,6 +24,7 @@ from rdflib.term import Node
 from segb_server.backend.services.rules.catalog import Rule
 from segb_server.backend.services.sparql.parser import exclusive
 from segb_server.backend.store.base import Store, select
+from segb_server.backend.store.sparql_text import top_level_where, top_level_where_end
 from segb_server.backend.store.terms import bind_rows, term_text
 from segb_server.backend.vocabulary import PREFIXES
 
@@ -243,8 +244,22 @@ def _own_targets(graph: Graph, shape: Node) -> tuple[set[str], list[URIRef], lis
 
 def _ask_targets(store: Store, query: str, chunk: list[str] | None) -> set[str]:
     if chunk is not None:
-        query = bind_rows(query, ["this"], [[NamedNode(node[1:-1])] for node in chunk], wrap=store.wraps_values)
+        # Virtuoso 7 skips some FILTERs of a group that opens with VALUES (`_with_values`): it is asked the join.
+        asked = query if store.wraps_values else _membership(query)
+        query = bind_rows(asked, ["this"], [[NamedNode(node[1:-1])] for node in chunk], wrap=store.wraps_values)
     return {term_text(row["this"]) for row in select(store, query).rows if isinstance(row.get("this"), NamedNode)}
+
+
+def _membership(query: str) -> str:
+    """A target query asked of given nodes: whether each one is a target, asked with EXISTS, which stops at the
+    first match. Joined instead, a node would come back once per statement that makes it a target (a SPARQL
+    target `?this ?p ?o`: every statement of the node), and a hub (a model every activity used, for
+    `sh:targetObjectsOf`) with every subject the store holds for it, a number that grows with the log."""
+    opening, end = top_level_where(query), top_level_where_end(query)
+    if opening is None or end is None:
+        return query
+    prologue = query[: query.upper().index("SELECT")] if "SELECT" in query.upper() else ""
+    return f"{prologue}SELECT ?this WHERE {{ FILTER EXISTS {{ {query[opening:end]} }} }}"
 
 
 def _read_predicates(graph: Graph) -> frozenset[str] | None:

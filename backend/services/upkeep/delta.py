@@ -4,17 +4,25 @@ Each kept query asks "which of the new triples have this predicate (and this obj
 patterns: the triples are grouped by predicate once per batch, and the first ask for a predicate makes its
 facts (the terms' N-Triples texts) and groups them by object, instead of every view scanning every triple for
 every pattern.
+
+The views of one batch also ask the store many of the same questions (the report and the timeline's kinds
+share their robot and human filters, so the same pairs are looked up for each): `Delta.answer` keeps a
+batch's answers by query text, for the batch only. An answer asked after the batch's triples were applied
+holds them, and what later steps add reaches the views through the later batches' own questions.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from typing import NamedTuple
+import threading
+from collections.abc import Callable, Sequence
+from typing import NamedTuple, TypeVar
 
 from pyoxigraph import Literal, Quad
 
 from segb_server.backend.store.base import Term
 from segb_server.backend.store.terms import term_text
+
+Answer = TypeVar("Answer")
 
 
 class Fact(NamedTuple):
@@ -38,6 +46,8 @@ class Delta:
             self._quads_by_predicate.setdefault(quad.predicate.value, []).append(quad)
         self._by_predicate: dict[str, list[Fact]] = {}  # made on the first ask for a predicate
         self._by_object: dict[str, dict[str, list[Fact]]] = {}  # predicate → object text → facts
+        self._answers: dict[str, object] = {}  # query text → the store's answer, for this batch
+        self._answers_lock = threading.Lock()  # views of a remote store ask side by side
 
     @classmethod
     def of(cls, quads: Sequence[Quad]) -> Delta:
@@ -65,3 +75,12 @@ class Delta:
             for fact in facts:
                 by_object.setdefault(fact.object_text, []).append(fact)
         return by_object.get(object_text, [])
+
+    def answer(self, query: str, ask: Callable[[str], Answer]) -> Answer:
+        """The store's answer to `query`, asked once per batch whichever view asks first (`ask(query)`)."""
+        with self._answers_lock:
+            if query in self._answers:
+                return self._answers[query]  # type: ignore[return-value]
+        found = ask(query)  # outside the lock: another view's different question need not wait for this one
+        with self._answers_lock:
+            return self._answers.setdefault(query, found)  # type: ignore[return-value]

@@ -9,7 +9,10 @@ built again.
 On a remote store the views of one batch are updated side by side, each in a worker thread of its own: their
 work is mostly waiting for the store's answers (a round trip per query), so a batch takes as long as its
 slowest view rather than all of them added up. On the embedded store the same work is this process's own CPU,
-which the posts need too: the views take turns there.
+which the posts need too: two views go side by side there. The store works out an answer without holding the
+interpreter (`store/solutions.py`), so one view's query runs on one core while another view's Python runs on
+the other; a single thread left a core idle while the views fell behind (a soak of one robot: the views 22 s
+behind after a minute, 1.4 s with two).
 
 With several API processes on one data directory, only the one holding the data directory's leadership keeps
 the views; the others follow the views it stores, which they read to answer. When the leader goes, the
@@ -53,6 +56,11 @@ MAX_REST_SECONDS = 0.25
 # reports within a second of its answer, and a slow batch (a large store, busy cores) already takes a share
 # of that. The rest is then cut short, and only while batches are that slow.
 START_WITHIN_SECONDS = 0.4
+# Nor does the thread rest while the views are this far behind (the oldest step waiting, seconds): under more
+# posts than the views keep up with at half the time, they take the time they need, and the posts slow down
+# rather than the views falling behind without end.
+NO_REST_BEHIND_SECONDS = 1.0
+EMBEDDED_VIEW_WORKERS = 2  # views updated side by side on the embedded store (see the module's docstring)
 FOLLOW_SECONDS = 0.25  # how often a following process reads how far the leader's views are
 # Applied steps wait in the queue with their triples up to this many; past it, a step waits as its journal
 # entries' numbers and its triples are read back from the journal when its turn comes, so memory stays bounded
@@ -145,7 +153,7 @@ class ViewKeeper:
         self._stopping = threading.Event()  # ends retry waits too: a store that never returns must not hold shutdown
         self.last_error: str | None = None
         self.cursor = Cursor()  # the journal entry every view is current through
-        workers = max(1, len(views)) if store.remote else 1
+        workers = max(1, len(views)) if store.remote else EMBEDDED_VIEW_WORKERS
         self._workers = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="segb-view")
 
     def start(self) -> None:
@@ -252,7 +260,8 @@ class ViewKeeper:
                 if isinstance(marker, _Marker):
                     marker.done.set()
             ended = time.monotonic()
-            rested = ended + min(MAX_REST_SECONDS, REST_RATIO * (ended - began)) if applied else 0.0
+            resting = applied and self._waited() < NO_REST_BEHIND_SECONDS
+            rested = ended + min(MAX_REST_SECONDS, REST_RATIO * (ended - began)) if resting else 0.0
 
     def _next_steps(self, rested: float) -> list[Applied | _Unread | _Marker] | None:
         """What to do next, once the rest ending at `rested` is over (or the first step waiting has waited
@@ -274,6 +283,12 @@ class ViewKeeper:
         with self._queued_lock:
             self._queued_triples -= sum(len(item.quads) for item in items if isinstance(item, Applied))
         return items
+
+    def _waited(self) -> float:
+        """How long the oldest step in the queue has waited (seconds; 0 when none waits)."""
+        with self._queue.mutex:
+            head = self._queue.queue[0] if self._queue.queue else None
+        return 0.0 if head is None else time.monotonic() - head.since
 
     def _read_unread(self, items: list[Applied | _Unread]) -> list[Applied]:
         """The steps with each run of unread ones read from the journal (one read a run)."""

@@ -6,7 +6,12 @@ from __future__ import annotations
 
 from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX
 from segb_server.backend.services.upkeep.delta import Delta, Fact
-from segb_server.backend.services.upkeep.kept_queries.keys import VALUES_PER_QUERY, PatternMatch, narrowing
+from segb_server.backend.services.upkeep.kept_queries.keys import (
+    BRANCHES_PER_QUERY,
+    VALUES_PER_QUERY,
+    PatternMatch,
+    narrowing,
+)
 from segb_server.backend.services.upkeep.kept_queries.plan import FacetFilter, Pattern, ReportPlan
 from segb_server.backend.store.base import Store, select
 from segb_server.backend.store.terms import term_text
@@ -30,24 +35,43 @@ class FacetPairs:
         return sorted({pair for body in self.facet.bodies for pair in self._pairs(store, body, "")})
 
     def new_pairs(self, delta: Delta, store: Store) -> list[tuple[str, str]]:
-        """The pairs in which one of the new triples (just added to the store) takes part."""
-        pairs: set[tuple[str, str]] = set()
+        """The pairs in which one of the new triples (just added to the store) takes part: one branch per body
+        pattern the triples match, bound to them, asked together (BRANCHES_PER_QUERY a query). Kept queries
+        sharing a filter (the reports and the timeline's kinds filter by the same robot and human) ask the same
+        text, which the batch answers once."""
+        branches: list[str] = []  # asked together
+        alone: list[str] = []  # binding a literal: asked one by one (Virtuoso 7 fails such a branch in a UNION)
         for match, body in self._matches:
             facts: list[Fact] = match.facts(delta)
             if not facts:
                 continue
             names = sorted(match.pattern.variables())
+            literal = any(match.binds_literal(fact, tuple(names)) for fact in facts)
             rows = sorted({"(" + " ".join(match.text(fact, name) for name in names) + ")" for fact in facts})
             for start in range(0, len(rows), VALUES_PER_QUERY):
-                values = " ".join(rows[start : start + VALUES_PER_QUERY])
-                pairs.update(self._pairs(store, body, f"VALUES ({' '.join(names)}) {{ {values} }} "))
+                values = f"VALUES ({' '.join(names)}) {{ {' '.join(rows[start : start + VALUES_PER_QUERY])} }} "
+                (alone if literal else branches).append(f"{{ {self._where(body, values)} }}")
+        queries = [[branch] for branch in alone]
+        queries += [branches[at : at + BRANCHES_PER_QUERY] for at in range(0, len(branches), BRANCHES_PER_QUERY)]
+        pairs: set[tuple[str, str]] = set()
+        for group in queries:
+            query = self._select(" UNION ".join(group))
+            pairs.update(delta.answer(query, lambda text: self._answered(store, text)))
         return sorted(pairs)
 
     def _pairs(self, store: Store, body: tuple[Pattern, ...], values: str) -> set[tuple[str, str]]:
+        return self._answered(store, self._select(self._where(body, values)))
+
+    def _where(self, body: tuple[Pattern, ...], values: str) -> str:
         patterns = " ".join(pattern.sparql() for pattern in body)
-        where = f"{values}{narrowing(self.plan, body)}{patterns}"
+        return f"{values}{narrowing(self.plan, body)}{patterns}"
+
+    def _select(self, where: str) -> str:
+        return f"SELECT DISTINCT {self.facet.anchor} {self.parameter} WHERE {{ {where} }}"
+
+    def _answered(self, store: Store, query: str) -> set[tuple[str, str]]:
         found = set()
-        for row in select(store, f"SELECT DISTINCT {self.facet.anchor} {self.parameter} WHERE {{ {where} }}").rows:
+        for row in select(store, query).rows:
             anchor, value = row.get(self.facet.anchor[1:]), row.get(self.parameter[1:])
             if anchor is not None and value is not None:
                 found.add((term_text(anchor), term_text(value)))

@@ -76,8 +76,9 @@ class KeyFinder:
 
     def units(self, delta: Delta, store: Store) -> set[str]:
         units: set[str] = set()
-        branches: list[str] = []  # asked together
-        alone: list[str] = []  # asked one by one
+        # The VALUES rows of each chain, gathered over every pattern leading to it: the patterns of one resource
+        # (an activity's type, robot, time, …) share their chains, and each row is asked once for all of them.
+        rows_by_chain: dict[_Chain, dict[str, bool]] = {}  # a VALUES row → whether it binds a literal
         for lead in self._leads:
             facts = lead.match.facts(delta)
             if not facts:
@@ -85,21 +86,24 @@ class KeyFinder:
             if not lead.chains:
                 units.update(lead.match.text(fact, self.target) for fact in facts)
                 continue
-            # One branch per chain, each opening with its own VALUES: they must bind the chain's own group (a BIND
-            # in a UNION branch would not see VALUES outside it, and the branch would reach every unit of the store).
             for chain in lead.chains:
-                rows: dict[str, bool] = {}  # a VALUES row → whether it binds a literal
+                rows = rows_by_chain.setdefault(chain, {})
                 for fact in facts:
                     row = "(" + " ".join(lead.match.text(fact, name) for name in chain.names) + ")"
                     rows[row] = rows.get(row, False) or lead.match.binds_literal(fact, chain.names)
-                listed = list(rows.items())
-                for start in range(0, len(listed), VALUES_PER_QUERY):
-                    chunk = listed[start : start + VALUES_PER_QUERY]
-                    values = " ".join(row for row, _ in chunk)
-                    branch = f"{{ VALUES ({' '.join(chain.names)}) {{ {values} }} {chain.steps} }}"
-                    # Virtuoso 7 fails a UNION whose branch binds a literal ("Unknown language in
-                    # RDF_LANGUAGE_OF_OBJ"): such a branch is asked alone.
-                    (alone if any(literal for _, literal in chunk) else branches).append(branch)
+        branches: list[str] = []  # asked together
+        alone: list[str] = []  # asked one by one
+        for chain, rows in rows_by_chain.items():
+            # One branch per chain, each opening with its own VALUES: they must bind the chain's own group (a BIND
+            # in a UNION branch would not see VALUES outside it, and the branch would reach every unit of the store).
+            listed = list(rows.items())
+            for start in range(0, len(listed), VALUES_PER_QUERY):
+                chunk = listed[start : start + VALUES_PER_QUERY]
+                values = " ".join(row for row, _ in chunk)
+                branch = f"{{ VALUES ({' '.join(chain.names)}) {{ {values} }} {chain.steps} }}"
+                # Virtuoso 7 fails a UNION whose branch binds a literal ("Unknown language in
+                # RDF_LANGUAGE_OF_OBJ"): such a branch is asked alone.
+                (alone if any(literal for _, literal in chunk) else branches).append(branch)
         # The others together: a remote store costs a round trip per query, and a batch touches a handful of them.
         queries = [[branch] for branch in alone]
         queries += [branches[at : at + BRANCHES_PER_QUERY] for at in range(0, len(branches), BRANCHES_PER_QUERY)]
