@@ -29,3 +29,13 @@ def test_a_short_soak_compares_views_off_and_on_and_loses_nothing() -> None:
     assert re.search(r"\| posts/s \| \d+ \| \d+ \| [\d.]+ \| ≥ 0\.8 \|", out), out
     assert len(re.findall(r"\| lost \(triples acknowledged, not stored\) \| 0 of [\d,]+ \| 0 \|", out)) == 2, out
     assert "timeline.sqlite3" in out  # every view's file is counted on disk
+    assert re.search(r"\| RSS at [\d,]+ posts MiB \| (\d+|not reached) \| \d+ \| [\d.]+ \| ≤ 1\.2 \|", out), out
+
+
+def test_memory_at_a_number_of_posts_is_read_between_the_samples_around_it() -> None:
+    from bench.soak import rss_when
+
+    samples = [(0, 100.0), (1000, 200.0), (3000, 400.0)]
+    assert rss_when(samples, 2000) == 300.0
+    assert rss_when(samples, 1000) == 200.0
+    assert rss_when(samples, 5000) is None  # the run never got there
