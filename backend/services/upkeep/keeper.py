@@ -12,7 +12,7 @@ slowest view rather than all of them added up. On the embedded store the same wo
 which the posts need too: two views go side by side there. The store works out an answer without holding the
 interpreter (`store/solutions.py`), so one view's query runs on one core while another view's Python runs on
 the other; a single thread left a core idle while the views fell behind (a soak of one robot: the views 22 s
-behind after a minute, 1.4 s with two).
+behind after a minute, 1.3 s with two).
 
 With several API processes on one data directory, only the one holding the data directory's leadership keeps
 the views; the others follow the views it stores, which they read to answer. When the leader goes, the
