@@ -225,6 +225,7 @@ def _server(store: str, root: Path, keep_views: bool = True) -> Iterator[tuple[S
     if store == "virtuoso":
         from tests.support.virtuoso import VirtuosoProcess
 
+        (root / "virtuoso").mkdir()
         virtuoso = VirtuosoProcess(root / "virtuoso")
         virtuoso.start()
         try:
