@@ -109,15 +109,26 @@ def test_the_api_stream_names_the_changed_report_and_resumes_from_an_event_id(ui
         assert stream.headers["content-type"].startswith("text/event-stream")
         publish_message(ui_stack.api_url, "Streamed hello")
         lines = stream.iter_lines()
-        event: dict[str, str] = {}
+        announced = False
+        position: str | None = None
         deadline = time.monotonic() + 20  # a keep-alive comment every 15 s gives the loop a turn
-        while "data" not in event or '"conversations"' not in event["data"]:
+        # The id goes on the last event of a group of changes (several reports' rows changed in one step of the
+        # views): read on from the conversations' event to the id that closes its group.
+        event: dict[str, str] = {}
+        while not (announced and position is not None):
             assert time.monotonic() < deadline, "no change of the conversations report was announced"
             line = next(lines)
             if line.startswith(("id:", "event:", "data:")):
                 key, _, value = line.partition(":")
                 event[key] = value.strip()
-    seen = int(event["id"])
+                continue
+            if line == "" and event:  # the end of one event
+                announced = announced or '"conversations"' in event.get("data", "")
+                if announced and "id" in event:
+                    position = event["id"]
+                event = {}
+    assert position is not None
+    seen = int(position)
     publish_message(ui_stack.api_url, "After the reconnection")
     with httpx.stream(
         "GET", f"{ui_stack.api_url}/reports/stream", headers={"Last-Event-ID": str(seen)}, timeout=30
