@@ -258,7 +258,7 @@ def _membership(query: str) -> str:
     opening, end = top_level_where(query), top_level_where_end(query)
     if opening is None or end is None:
         return query
-    prologue = query[: query.upper().index("SELECT")] if "SELECT" in query.upper() else ""
+    prologue = query[: max(0, query.upper().find("SELECT"))]  # its PREFIXes, if any
     return f"{prologue}SELECT ?this WHERE {{ FILTER EXISTS {{ {query[opening:end]} }} }}"
 
 
