@@ -19,10 +19,16 @@ from pathlib import Path
 
 import orjson
 from pyoxigraph import Literal, NamedNode
-from rdflib import Graph
 
 from segb_server.backend.services.errors import InvalidParameter
-from segb_server.backend.services.rules.shapes import Context, ShapeResult, ShapeRule, read_predicates, statements
+from segb_server.backend.services.rules.shapes import (
+    Context,
+    NodeStatements,
+    ShapeResult,
+    ShapeRule,
+    read_predicates,
+    statements,
+)
 from segb_server.backend.services.upkeep.database import ViewDatabase
 from segb_server.backend.services.upkeep.delta import Delta
 from segb_server.backend.services.upkeep.kept_queries.encoding import instant, sort_key
@@ -264,12 +270,12 @@ def check_rules(
     if named is not None:
         candidates = sorted(node for node in named if node.startswith("<"))
         predicates = _union([rule.statement_predicates() for rule in rules])
-        data, contexts = statements(store, candidates, predicates) if candidates else (Graph(), {})
+        data, contexts = statements(store, candidates, predicates) if candidates else (NodeStatements(), {})
         targets = {rule.rule.id: rule.targets_among(store, candidates, data) for rule in rules}
     else:
         targets = {rule.rule.id: rule.targets(store, None) for rule in rules}
         nodes = sorted({node for found in targets.values() for nodes in found.values() for node in nodes})
-        data, contexts = statements(store, nodes, read_predicates(rules)) if nodes else (Graph(), {})
+        data, contexts = statements(store, nodes, read_predicates(rules)) if nodes else (NodeStatements(), {})
     checked: dict[str, tuple[set[str], dict[str, list[Found]]]] = {}
     for rule in rules:
         units = set().union(*targets[rule.rule.id].values()) if targets[rule.rule.id] else set()
