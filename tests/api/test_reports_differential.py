@@ -107,6 +107,35 @@ def test_reports_equal_their_full_evaluation_after_every_step(store_server: str,
     assert set().union(*speakers.values()) == {"human", "robot", "unidentified"}  # the histories reached each
 
 
+@pytest.mark.slow  # a long history, then every report evaluated in full after each step
+def test_reports_of_one_robot_with_a_long_history_equal_their_full_evaluation(store_server: str) -> None:
+    """One robot meeting one person for a long time (its node and theirs gain children with every post), then
+    late links, re-publishes and a clearing: what a post changes of hubs that old must still be exact."""
+    server = store_server
+    history = History(11, robots=("ari",), humans=("maria",))
+    for _ in range(4):
+        send(server, history.backlog(60))  # 240 interactions before the steps compared
+    steps = [history.next_post() for _ in range(8)] + [None, history.next_post(), history.next_post()]
+    for step, post in enumerate(steps):
+        send(server, post)
+        settle(server)
+        variants = [{}, {"robot": f"{EX}robot/ari"}, {"human": f"{EX}human/maria"}] if step % 3 == 2 else [{}]
+        for query in REPORTS:
+            name = query.name.removeprefix("reports/")
+            order = [column[1:] for column in _order_of(query.text)]
+            for params in variants:
+                accepted = {key: value for key, value in params.items() if key in query.parameters}
+                if params and not accepted:
+                    continue
+                served = report_rows(server, name, accepted, page=50)
+                evaluated = full_evaluation(server, bound_text(query.name, accepted))
+                same_rows(served, evaluated, order, f"step {step}: {name} {accepted}")
+                if step == 0 and not accepted and name == "conversations":
+                    assert len(served) >= 240  # the long history is there
+        served_from = {http(server, "GET", f"/reports/{query.name[8:]}").json()["served_from"] for query in REPORTS}
+        assert served_from == {"rows"}
+
+
 def _order_of(text: str) -> list[str]:
     found = re.search(r"ORDER BY\s+(.*)$", text, re.DOTALL)
     return found.group(1).split() if found else []

@@ -103,6 +103,27 @@ def test_the_timeline_equals_its_queries_evaluated_in_full_after_every_step(stor
             assert instants == sorted(instants), (step, params, "out of time order")
 
 
+@pytest.mark.slow  # a long history, then the timeline evaluated in full after each step
+def test_the_timeline_of_one_robot_with_a_long_history_equals_its_queries(store_server: str) -> None:
+    """One robot and one person for a long time, then late links, re-publishes and a clearing."""
+    server = store_server
+    history = History(12, robots=("ari",), humans=("maria",))
+    for _ in range(3):
+        send(server, history.backlog(60))
+    steps = [history.next_post() for _ in range(5)] + [None, history.next_post()]
+    for step, post in enumerate(steps):
+        send(server, post)
+        settle(server)
+        copy = embedded_copy(server)
+        variants = [{"robot": f"{EX}robot/ari"}, {"human": f"{EX}human/maria", "since": "2026-03-10T09:20:00Z"}]
+        for params in variants:
+            rows = timeline(server, params, page=50)
+            told = Counter((str(row["kind"]), str(row["iri"]), str(row["time"])) for row in rows)
+            assert told == evaluated_events(copy, params) + listed_findings(server, params), (step, params)
+            if step == 0 and "since" not in params:
+                assert len(rows) > 180 * 3  # the long history is there: several events an interaction
+
+
 def test_message_speakers_are_the_conversations_reports(store_server: str) -> None:
     """Who spoke a message is decided once, by the conversations report's `speaker`: the timeline's sentences and
     the explanations must say the same after every step (late senders and re-publishes included). A message's

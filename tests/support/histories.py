@@ -38,6 +38,8 @@ class History:
     """Random robot logs in the client's shapes; each part of a unit of activity may arrive in a later post."""
 
     seed: int
+    robots: tuple[str, ...] = tuple(ROBOTS)  # one robot and one person: the hubs whose history grows
+    humans: tuple[str, ...] = tuple(HUMANS)
     rng: random.Random = field(init=False)
     pending: list[list[str]] = field(default_factory=list)  # triples held back: late links
     sent: list[str] = field(default_factory=list)
@@ -48,11 +50,11 @@ class History:
 
     def base(self) -> list[str]:
         triples = []
-        for robot in ROBOTS:
+        for robot in self.robots:
             triples += [f"{iri('robot', robot)} {term('rdf:type')} {term('oro:Robot')} ."]
             if self.rng.random() < 0.8:  # a robot's name may come late
                 triples.append(f'{iri("robot", robot)} {term("schema:name")} "{robot.upper()}" .')
-        for human in HUMANS:
+        for human in self.humans:
             triples += [
                 f"{iri('human', human)} {term('rdf:type')} {term('oro:Human')} .",
                 f'{iri("human", human)} {term("foaf:firstName")} "{human.capitalize()}" .',
@@ -68,7 +70,7 @@ class History:
         """One interaction, split in parts that may be sent in different posts."""
         self.counter += 1
         n, rng = self.counter, self.rng
-        robot, human = rng.choice(ROBOTS), rng.choice(HUMANS)
+        robot, human = rng.choice(self.robots), rng.choice(self.humans)
         activity, message = iri("activity", f"a{n}"), iri("message", f"m{n}")
         event = iri("event", f"e{rng.randrange(max(1, n // 2) + 1)}")  # events shared by several activities
         seconds = rng.randrange(0, 3600)  # out-of-order times
@@ -113,6 +115,14 @@ class History:
         if rng.random() < 0.3:
             parts.append(snapshot)
         return [part for part in parts if part]
+
+    def backlog(self, units: int) -> list[str]:
+        """A history's past in one post: `units` interactions whole, with the base (no late links)."""
+        post = self.base() if not self.sent else []
+        for _ in range(units):
+            post += [triple for part in self.unit() for triple in part]
+        self.sent += post
+        return post
 
     def next_post(self) -> list[str] | None:
         """The triples of the next post, or None for a clearing."""
