@@ -9,7 +9,9 @@ import pytest
 from pyoxigraph import Literal, NamedNode, Quad
 
 from segb_server.backend.services.ingest.service import post_entry
+from segb_server.backend.services.writing import known_digests
 from segb_server.backend.services.writing.journal import Journal, PostEntry, StorageFull
+from segb_server.backend.services.writing.known_digests import KnownDigests
 from segb_server.backend.services.writing.receipts import GENESIS_HASH
 from segb_server.backend.state.sqlite import SqliteDatabase
 
@@ -91,3 +93,32 @@ def test_past_its_size_limit_the_journal_refuses_the_post_and_keeps_nothing_of_i
     with pytest.raises(StorageFull, match="JOURNAL_MAX_BYTES"):
         journal.append_posts([post(*big)])
     assert journal.head() == 0 and journal.storage_problem is not None
+
+
+def test_the_digests_remembered_are_bounded_and_forgetting_one_loses_no_triple(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A robot logging for months: the journal remembers the digests of the triples re-sent lately, not of every
+    triple ever posted; a triple no longer remembered is still known to the journal (its table decides)."""
+    monkeypatch.setattr(known_digests, "GENERATION", 50)
+    journal = Journal(SqliteDatabase(None))
+    graph: list[Quad] = []
+    for index in range(300):  # the client's way: the whole graph again, with one triple more each time
+        graph.append(quad(f"n{index}", "new"))
+        (receipt,) = journal.append_posts([post(*graph[-40:])])  # the last 40: a payload the bound holds
+        assert receipt.triples_new == 1  # type: ignore[union-attr]
+        assert len(journal._known) <= 100
+    (again,) = journal.append_posts([post(graph[0], quad("late", "new"))])  # forgotten long ago, and a new one
+    assert (again.triples_received, again.triples_new) == (2, 1)  # type: ignore[union-attr]
+    assert journal.entries_after(again.sequence - 1, 1)[0].content == f'<{EX}late> <{EX}says> "new" .\n'.encode()  # type: ignore[union-attr]
+
+
+def test_known_digests_keep_what_is_still_re_sent() -> None:
+    known = KnownDigests(generation=3)
+    known.update([b"a", b"b"])
+    assert b"a" in known  # found in the current generation
+    known.update([b"c", b"d", b"e"])  # a, b, c filled the current generation: the previous one now; d, e current
+    assert b"a" in known  # re-sent: moved to the current one (d, e, a), which filled and became the previous one
+    known.update([b"f", b"g"])
+    assert len(known) == 5  # f, g and the previous d, e, a: b and c, not re-sent, were forgotten
+    assert b"b" not in known and b"c" not in known and b"a" in known and b"g" in known

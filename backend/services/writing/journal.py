@@ -36,6 +36,7 @@ from segb_server.backend.services.writing.erasure import (
 )
 from segb_server.backend.services.writing.journal_reads import COLUMNS, JournalReads
 from segb_server.backend.services.writing.journal_reads import JournalEntry as JournalEntry  # re-exported
+from segb_server.backend.services.writing.known_digests import KnownDigests
 from segb_server.backend.services.writing.receipts import (
     FIELD_NAMES,
     Receipt,
@@ -118,8 +119,8 @@ class Journal(JournalReads):
         self.max_bytes = max_bytes
         self._lock = threading.Lock()
         # Digests known to be in the journal since the last clearing, for this epoch: re-published triples
-        # then cost no database lookup. Only ever holds digests that were committed.
-        self._known: set[bytes] = set()
+        # then cost no database lookup. Only ever holds digests that were committed; bounded (known_digests.py).
+        self._known = KnownDigests()
         self._known_epoch = -1
         self.storage_problem: str | None = None  # why the last write failed for want of space, until one works
         self._any_erased: bool | None = None  # whether erased_triples holds any digest (None: not read yet)
@@ -140,7 +141,7 @@ class Journal(JournalReads):
             with self._storage_errors(), self._transaction() as connection:
                 epoch = self._epoch(connection)
                 if epoch != self._known_epoch:  # a clearing or an erasure (in any process) since the last post
-                    self._known, self._known_epoch, self._any_erased = set(), epoch, None
+                    self._known, self._known_epoch, self._any_erased = KnownDigests(), epoch, None
                 sequence, previous = self._head(connection)
                 outcomes: list[Receipt | BaseException] = []
                 held_back: list[set[bytes]] = []
@@ -172,7 +173,7 @@ class Journal(JournalReads):
         and the receipt counts them as removed."""
         with self._lock, self._storage_errors():
             receipt, epoch = self._clear(log_id, user, claimed_user)
-            self._known, self._known_epoch = set(), epoch
+            self._known, self._known_epoch = KnownDigests(), epoch
         return receipt
 
     def append_erasure(self, erasure: Erasure) -> ErasureDone | None:
@@ -198,7 +199,7 @@ class Journal(JournalReads):
                     (receipt.sequence, zlib.compress(b"".join(line + b"\n" for line in redaction.removed))),
                 )
             # The removed triples may come again (or, withheld, be told of again): the cache forgets them all.
-            self._known, self._known_epoch = set(), -1
+            self._known, self._known_epoch = KnownDigests(), -1
             self._any_erased = self._any_erased or erasure.withhold
         return ErasureDone(receipt, len(redaction.items), redaction.removed)
 
