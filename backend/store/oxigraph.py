@@ -27,11 +27,13 @@ from segb_server.backend.store.terms import bind_values
 
 _COUNT = "SELECT (COUNT(*) AS ?n) WHERE { ?s ?p ?o }"
 # RocksDB keeps what is written in memory tables until it flushes them to its files; pyoxigraph gives each of its
-# twelve column families 128 MiB of them, so left alone the server's memory grows with the store (about 0.25 MiB
+# twelve column families 128 MiB of them, so left alone the server's memory grows with the store (about 0.26 MiB
 # per 1,000 triples of a robot's log) up to about 1.5 GiB. A flush after every MEMTABLE_FLUSH_TRIPLES applied
-# triples keeps them to about 30 MiB; it writes 100,000 triples' tables in about 0.2 s, without the interpreter
-# lock, on a thread of its own while applying goes on.
-MEMTABLE_FLUSH_TRIPLES = 100_000
+# triples bounds them to about 100 MiB; it runs on a thread of its own, without the interpreter lock, while
+# applying goes on (100,000 triples' tables in about 0.2 s). Not fewer: the views read back what posts just added,
+# and those reads are cheapest in memory. Flushing every 100,000 triples, the soak's views fell 10 s behind (p99)
+# where every 400,000 they stayed within 3.6 s (bench/soak.py, one robot, 3 minutes).
+MEMTABLE_FLUSH_TRIPLES = 400_000
 # The cursor's graph here; queries see only the default graph.
 CURSOR_GRAPH = NamedNode("urn:segb:applied")
 XSD_INTEGER = NamedNode("http://www.w3.org/2001/XMLSchema#integer")
