@@ -91,10 +91,10 @@ class OxigraphStore:
                     self._store.remove(quad)
             self._unflushed += len(quads)
             due = self.path is not None and self._unflushed >= self._flush_every
-        if due and self._flushing.acquire(blocking=False):  # one at a time: a flush under way covers these too
-            self._unflushed = 0
-            self.flushes += 1
-            threading.Thread(target=self._flush, name="store-flush", daemon=True).start()
+            if due and self._flushing.acquire(blocking=False):  # one at a time: a flush under way covers these too
+                self._unflushed = 0
+                self.flushes += 1
+                threading.Thread(target=self._flush, name="store-flush", daemon=True).start()
 
     def _flush(self) -> None:
         try:

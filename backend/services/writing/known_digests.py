@@ -26,8 +26,8 @@ class KnownDigests:
     def __contains__(self, digest: object) -> bool:
         if digest in self._current:
             return True
-        if digest in self._previous:
-            self._add(digest)  # type: ignore[arg-type]  # still re-sent: kept for the next generation too
+        if isinstance(digest, bytes) and digest in self._previous:
+            self._add(digest)  # still re-sent: kept for the next generation too
             return True
         return False
 
