@@ -3,7 +3,9 @@ process, live servers."""
 
 from __future__ import annotations
 
+import atexit
 import os
+import shutil
 import sys
 import tempfile
 import uuid
@@ -36,7 +38,8 @@ STORE_KINDS = ["oxigraph", pytest.param("virtuoso", marks=pytest.mark.virtuoso)]
 # writes nothing outside temporary directories.
 hypothesis_settings.register_profile("segb", database=None, deadline=None)
 hypothesis_settings.load_profile("segb")
-set_hypothesis_home_dir(tempfile.mkdtemp(prefix="segb-test-hypothesis-"))
+_HYPOTHESIS_HOME = Path(tempfile.mkdtemp(prefix="segb-test-hypothesis-"))
+set_hypothesis_home_dir(str(_HYPOTHESIS_HOME))
 
 
 # The fast tier (`pytest --fast`, `./scripts/test.sh --fast`): every test but those needing a real part or a
@@ -216,6 +219,18 @@ def live_api(memory_store: Store) -> Iterator[LiveServer]:
 # Screenshots of every browser test's final state, kept as evidence outside the working tree
 # (SEGB_TEST_ARTIFACTS chooses where; by default a temporary directory that the run prints).
 ARTIFACTS = Path(os.environ.get("SEGB_TEST_ARTIFACTS") or tempfile.mkdtemp(prefix="segb-test-artifacts-"))
+
+
+def _remove_temporary() -> None:
+    """What this process made in the temporary directory goes when it ends (each xdist worker its own); the
+    browser screenshots stay when there are any, where the run printed."""
+    for path in (_DATA_ROOT, _HYPOTHESIS_HOME):
+        shutil.rmtree(path, ignore_errors=True)
+    if "SEGB_TEST_ARTIFACTS" not in os.environ and ARTIFACTS.is_dir() and not any(ARTIFACTS.iterdir()):
+        ARTIFACTS.rmdir()
+
+
+atexit.register(_remove_temporary)
 
 
 class UiStack:

@@ -9,6 +9,7 @@ there instead of into the user's.
 
 from __future__ import annotations
 
+import atexit
 import os
 import shutil
 import subprocess
@@ -32,6 +33,7 @@ def redirect_home() -> Path:
     returns the user's real home."""
     real = Path(os.environ.get("HOME") or Path.home())
     fake = Path(tempfile.mkdtemp(prefix="segb-test-home-"))
+    atexit.register(shutil.rmtree, fake, ignore_errors=True)  # the run's processes have ended by then
     os.environ["HOME"] = str(fake)
     for name in ("XDG_CACHE_HOME", "XDG_CONFIG_HOME", "XDG_DATA_HOME", "XDG_STATE_HOME"):
         os.environ.pop(name, None)
