@@ -89,21 +89,9 @@ def test_reports_equal_their_full_evaluation_after_every_step(store_server: str,
                 {"human": f"{EX}human/{rng.choice(HUMANS)}"},
                 {"since": "2026-03-10T09:20:00Z", "until": "2026-03-10T09:40:00Z"},
             ]
-        for query in REPORTS:
-            name = query.name.removeprefix("reports/")
-            order = [column[1:] for column in _order_of(query.text)]
-            for params in variants:
-                accepted = {key: value for key, value in params.items() if key in query.parameters}
-                if params and not accepted:
-                    continue
-                served = report_rows(server, name, accepted, page=12)
-                evaluated = full_evaluation(server, bound_text(query.name, accepted))
-                same_rows(served, evaluated, order, f"step {step}: {name} {accepted}")
-                if name == "conversations" and not accepted:
-                    for row in served:
-                        speakers.setdefault(row["message"], set()).add(row["speaker"])
-        served_from = {http(server, "GET", f"/reports/{query.name[8:]}").json()["served_from"] for query in REPORTS}
-        assert served_from == {"rows"}  # compared above: the rows kept current, not an evaluation
+        conversations = served_equal_evaluated(server, variants, step, page=12)
+        for row in conversations:
+            speakers.setdefault(row["message"], set()).add(row["speaker"])
     assert set().union(*speakers.values()) == {"human", "robot", "unidentified"}  # the histories reached each
 
 
@@ -120,20 +108,32 @@ def test_reports_of_one_robot_with_a_long_history_equal_their_full_evaluation(st
         send(server, post)
         settle(server)
         variants = [{}, {"robot": f"{EX}robot/ari"}, {"human": f"{EX}human/maria"}] if step % 3 == 2 else [{}]
-        for query in REPORTS:
-            name = query.name.removeprefix("reports/")
-            order = [column[1:] for column in _order_of(query.text)]
-            for params in variants:
-                accepted = {key: value for key, value in params.items() if key in query.parameters}
-                if params and not accepted:
-                    continue
-                served = report_rows(server, name, accepted, page=50)
-                evaluated = full_evaluation(server, bound_text(query.name, accepted))
-                same_rows(served, evaluated, order, f"step {step}: {name} {accepted}")
-                if step == 0 and not accepted and name == "conversations":
-                    assert len(served) >= 240  # the long history is there
-        served_from = {http(server, "GET", f"/reports/{query.name[8:]}").json()["served_from"] for query in REPORTS}
-        assert served_from == {"rows"}
+        conversations = served_equal_evaluated(server, variants, step, page=50)
+        if step == 0:
+            assert len(conversations) >= 240  # the long history is there
+
+
+def served_equal_evaluated(
+    server: Server, variants: list[dict[str, str]], step: int, page: int
+) -> list[dict[str, object]]:
+    """Every report, with each variant's parameters it takes, served from its kept rows (paged by `page`) equals
+    its query evaluated in full; returns the conversations report's rows served without parameters."""
+    conversations: list[dict[str, object]] = []
+    for query in REPORTS:
+        name = query.name.removeprefix("reports/")
+        order = [column[1:] for column in _order_of(query.text)]
+        for params in variants:
+            accepted = {key: value for key, value in params.items() if key in query.parameters}
+            if params and not accepted:
+                continue
+            served = report_rows(server, name, accepted, page=page)
+            evaluated = full_evaluation(server, bound_text(query.name, accepted))
+            same_rows(served, evaluated, order, f"step {step}: {name} {accepted}")
+            if name == "conversations" and not accepted:
+                conversations = served
+    served_from = {http(server, "GET", f"/reports/{query.name[8:]}").json()["served_from"] for query in REPORTS}
+    assert served_from == {"rows"}  # compared above: the rows kept current, not an evaluation
+    return conversations
 
 
 def _order_of(text: str) -> list[str]:
