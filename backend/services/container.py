@@ -37,6 +37,7 @@ from segb_server.backend.services.timeline.sources import KeptSource
 from segb_server.backend.services.upkeep.keeper import KeptView
 from segb_server.backend.services.upkeep.kept_queries.projection import KeptQueries
 from segb_server.backend.services.upkeep.kept_queries.rows import KeptRows
+from segb_server.backend.services.upkeep.seen_terms import SEEN_TERMS_FILE
 from segb_server.backend.services.writing.write_path import WritePath
 from segb_server.backend.state.opening import open_state
 from segb_server.backend.store.base import Store
@@ -166,7 +167,10 @@ def build_services(
         snapshots=folder and folder / "snapshots",
     )
     view_files = (
-        [folder / name for name in (REPORTS_FILE, GRAPH_FILE, FINDINGS_FILE, SHAPE_FINDINGS_FILE, TIMELINE_FILE)]
+        [
+            folder / name
+            for name in (REPORTS_FILE, GRAPH_FILE, FINDINGS_FILE, SHAPE_FINDINGS_FILE, TIMELINE_FILE, SEEN_TERMS_FILE)
+        ]
         if folder
         else []
     )

@@ -30,6 +30,7 @@ from segb_server.backend.services.sparql.catalog import Catalog
 from segb_server.backend.services.upkeep.delta import Delta
 from segb_server.backend.services.upkeep.kept_queries.projection import KeptQueries
 from segb_server.backend.services.upkeep.kept_queries.rows import KeptRows
+from segb_server.backend.services.upkeep.seen_terms import SeenTerms
 from segb_server.backend.store.base import QueryResult
 from segb_server.backend.store.oxigraph import OxigraphStore
 from segb_server.examples.emotion_mirror.mission import EmotionMirrorMission, RobotConfig
@@ -72,6 +73,7 @@ class Views:
     store: CountingStore
     kept: list[Any]
     ticks: dict[str, int]
+    seen: SeenTerms | None  # the IRIs the store holds, which tell a post's fresh ones (as the server's keeper does)
     applied: int = 0
 
     def history(self, posts: Sequence[Sequence[Quad]]) -> None:
@@ -79,13 +81,16 @@ class Views:
         for quads in posts:
             self.applied += 1
             self.store.apply(quads, self.applied)
+        if self.seen is not None:
+            self.seen.build(self.store, self.applied)
         for view in self.kept:
             view.build(self.applied)
 
     def post(self, quads: Sequence[Quad]) -> None:
         self.applied += 1
         self.store.apply(quads, self.applied)
-        delta = Delta.of(quads)
+        fresh = frozenset[str]() if self.seen is None else self.seen.admit(quads, self.applied, self.applied)
+        delta = Delta.of(quads, fresh)
         for view in self.kept:
             view.update(delta, self.applied)
 
@@ -98,9 +103,10 @@ class Views:
         return Work(self.store.queries, self.store.rows, dict(self.ticks))
 
 
-def kept_views(tmp_path: Path, counting: type[CountingStore] = CountingStore) -> Views:
+def kept_views(tmp_path: Path, counting: type[CountingStore] = CountingStore, *, registry: bool = True) -> Views:
     """Every view a server keeps, as `build_services` makes them: the reports' rows, the timeline's kinds, the
-    graph index, the SPARQL rules' findings and the SHACL rules' findings."""
+    graph index, the SPARQL rules' findings and the SHACL rules' findings; with `registry`, told which of a post's
+    IRIs are fresh, as the server's views are."""
     store = counting(tmp_path / "store")
     catalog = Catalog(PACKAGE_ROOT / "sparql")
     rules = RuleCatalog(PACKAGE_ROOT / "rules")
@@ -121,7 +127,8 @@ def kept_views(tmp_path: Path, counting: type[CountingStore] = CountingStore) ->
     ticks = dict.fromkeys(databases, 0)
     for name, database in databases.items():
         database.writer().set_progress_handler(_counter(ticks, name), STEPS_PER_TICK)
-    return Views(store, [*reports.views(), *timeline.views(), index, *findings.views(), shapes], ticks)
+    seen = SeenTerms(tmp_path / "seen-terms.sqlite3") if registry else None
+    return Views(store, [*reports.views(), *timeline.views(), index, *findings.views(), shapes], ticks, seen)
 
 
 def _counter(ticks: dict[str, int], name: str) -> Callable[[], int]:
@@ -172,12 +179,16 @@ def _new(graph: Graph, seen: set[tuple[Any, ...]]) -> list[Quad]:
 
 
 @pytest.mark.slow  # histories of 250 and 1,000 posts, twice
+@pytest.mark.parametrize("registry", [True, False], ids=["fresh-terms-known", "every-join-asked"])
 @pytest.mark.parametrize("shape", [receptionist_posts, mirror_posts], ids=["new-visitors", "same-person"])
 def test_a_posts_upkeep_work_does_not_grow_with_the_robots_history(
-    tmp_path: Path, shape: Callable[[int], list[list[Quad]]]
+    tmp_path: Path, shape: Callable[[int], list[list[Quad]]], registry: bool
 ) -> None:
+    # Both ways a view finds what a post changes: joins from the post's own resources followed among its triples
+    # (the server's), and every join asked of the store (a view catching up from the journal).
     posts = shape(LONG + 2 * MEASURED)
-    short, long = kept_views(tmp_path / "short"), kept_views(tmp_path / "long")
+    short = kept_views(tmp_path / "short", registry=registry)
+    long = kept_views(tmp_path / "long", registry=registry)
     short.history(posts[: 1 + SHORT])
     long.history(posts[: 1 + LONG])
     # The same kind of post on both: the next ones after each history.
@@ -201,10 +212,31 @@ class RecordingStore(CountingStore):
         return super().query(sparql, bindings, timeout)
 
 
+def test_a_post_of_new_resources_asks_the_store_for_its_rows_only(tmp_path: Path) -> None:
+    # Which rows a visit changes and which filter pairs it adds are joins from the visit's own resources (a new
+    # visitor, activity, message, event): followed among the post's triples, they ask the store nothing. What the
+    # store is still asked: each view's rows for those keys, and the SHACL shapes' targets.
+    posts = receptionist_posts(40)
+    asked = {}
+    for registry in (True, False):
+        views = kept_views(tmp_path / str(registry), RecordingStore, registry=registry)
+        store = views.store
+        assert isinstance(store, RecordingStore)
+        views.history(posts[:30])
+        store.texts.clear()
+        for post in posts[30:]:
+            views.post(post)
+        asked[registry] = list(store.texts)
+    joins = [text for text in asked[True] if text.startswith("SELECT DISTINCT")]
+    assert not joins, joins[:3]
+    assert [text for text in asked[False] if text.startswith("SELECT DISTINCT")], "no join was asked without them"
+    assert len(asked[True]) < len(asked[False]) * 0.7, (len(asked[True]), len(asked[False]))
+
+
 def test_a_batch_asks_each_filter_question_once_for_every_view(tmp_path: Path) -> None:
     # The reports and the timeline's kinds filter by the same robot and human: the pairs a batch adds to those
     # filters are the same questions for each of them, asked of the store once.
-    views = kept_views(tmp_path, RecordingStore)
+    views = kept_views(tmp_path, RecordingStore, registry=False)
     store = views.store
     assert isinstance(store, RecordingStore)
     posts = receptionist_posts(12)

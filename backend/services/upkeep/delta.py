@@ -5,6 +5,10 @@ patterns: the triples are grouped by predicate once per batch, and the first ask
 facts (the terms' N-Triples texts) and groups them by object, instead of every view scanning every triple for
 every pattern.
 
+`fresh` holds the batch's terms the store held no triple about before the batch (`upkeep/seen_terms.py`): every
+triple the store holds about such a term (of this batch or earlier) is among the new triples, so a view may
+follow a join from it here (`kept_queries/delta_joins.py`) instead of asking the store.
+
 The views of one batch also ask the store many of the same questions (the report and the timeline's kinds
 share their robot and human filters, so the same pairs are looked up for each): `Delta.answer` keeps a
 batch's answers by query text, for the batch only. An answer asked after the batch's triples were applied
@@ -39,19 +43,21 @@ class Fact(NamedTuple):
 
 
 class Delta:
-    def __init__(self, quads: Sequence[Quad]) -> None:
+    def __init__(self, quads: Sequence[Quad], fresh: frozenset[str] = frozenset()) -> None:
         self.quads = quads
+        self.fresh = fresh  # N-Triples texts of the terms no triple of the store held before this batch
         self._quads_by_predicate: dict[str, list[Quad]] = {}
         for quad in quads:
             self._quads_by_predicate.setdefault(quad.predicate.value, []).append(quad)
         self._by_predicate: dict[str, list[Fact]] = {}  # made on the first ask for a predicate
         self._by_object: dict[str, dict[str, list[Fact]]] = {}  # predicate → object text → facts
+        self._by_subject: dict[str, dict[str, list[Fact]]] = {}  # predicate → subject text → facts
         self._answers: dict[str, object] = {}  # query text → the store's answer, for this batch
         self._answers_lock = threading.Lock()  # views of a remote store ask side by side
 
     @classmethod
-    def of(cls, quads: Sequence[Quad]) -> Delta:
-        return cls(quads)
+    def of(cls, quads: Sequence[Quad], fresh: frozenset[str] = frozenset()) -> Delta:
+        return cls(quads, fresh)
 
     def __bool__(self) -> bool:
         return bool(self.quads)
@@ -71,10 +77,16 @@ class Delta:
             return facts
         by_object = self._by_object.get(predicate)
         if by_object is None:  # `rdf:type` has most triples and most patterns
-            by_object = self._by_object[predicate] = {}
-            for fact in facts:
-                by_object.setdefault(fact.object_text, []).append(fact)
+            by_object = self._by_object[predicate] = _grouped(facts, lambda fact: fact.object_text)
         return by_object.get(object_text, [])
+
+    def about(self, predicate: str, subject_text: str) -> list[Fact]:
+        """The new triples with `predicate` whose subject's N-Triples text is `subject_text`."""
+        by_subject = self._by_subject.get(predicate)
+        if by_subject is None:
+            facts = self.with_predicate(predicate)
+            by_subject = self._by_subject[predicate] = _grouped(facts, lambda fact: fact.subject_text)
+        return by_subject.get(subject_text, [])
 
     def answer(self, query: str, ask: Callable[[str], Answer]) -> Answer:
         """The store's answer to `query`, asked once per batch whichever view asks first (`ask(query)`)."""
@@ -84,3 +96,12 @@ class Delta:
         found = ask(query)  # outside the lock: another view's different question need not wait for this one
         with self._answers_lock:
             return self._answers.setdefault(query, found)  # type: ignore[return-value]
+
+
+def _grouped(facts: list[Fact], key: Callable[[Fact], str]) -> dict[str, list[Fact]]:
+    """The facts grouped by `key`, made whole before a view sees it: views of one batch ask side by side, and
+    one must never read a grouping another is still filling."""
+    grouped: dict[str, list[Fact]] = {}
+    for fact in facts:
+        grouped.setdefault(key(fact), []).append(fact)
+    return grouped

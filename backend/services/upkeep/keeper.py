@@ -38,6 +38,7 @@ from pyoxigraph import Quad
 from segb_server.backend.services.errors import OUTAGES
 from segb_server.backend.services.ops.leadership import Leadership
 from segb_server.backend.services.upkeep.delta import Delta
+from segb_server.backend.services.upkeep.seen_terms import SeenTerms
 from segb_server.backend.services.writing.applier import Applied, Applier, applied_steps, quads_of
 from segb_server.backend.services.writing.cursor import Cursor
 from segb_server.backend.services.writing.journal import Journal
@@ -134,13 +135,16 @@ class ViewKeeper:
         applier: Applier | None = None,
         housekeeping: Callable[[], None] | None = None,
         max_queued_triples: int = MAX_QUEUED_TRIPLES,
+        seen_terms: SeenTerms | None = None,
     ) -> None:
         """`applier`: the process's applier, when the views' leadership is not its (then, while it does not
         apply, the views read what it saw applied from the journal). `housekeeping`: run once the views are
-        ready, by the process that keeps them (the only one that writes them)."""
+        ready, by the process that keeps them (the only one that writes them). `seen_terms`: the IRIs the store
+        has held, kept here a step ahead of the views, which it tells which of a batch's terms are fresh."""
         self.store = store
         self.journal = journal
         self.views = views
+        self.seen_terms = seen_terms
         self.leadership = leadership or Leadership(None)
         self._applier = applier if applier is not None and applier.leadership is not self.leadership else None
         self._housekeeping = housekeeping
@@ -166,6 +170,8 @@ class ViewKeeper:
         if self._thread is not None:
             self._thread.join(timeout=30)
         self._workers.shutdown(wait=True)
+        if self.seen_terms is not None:
+            self.seen_terms.close()
 
     def on_applied(self, step: Applied) -> None:
         """The applier's listener: called in the applier's thread, so it only queues."""
@@ -345,6 +351,8 @@ class ViewKeeper:
                 logger.exception("keeping the views current failed; building them again")
                 last = applied[-1]
                 through = last.last if isinstance(last, _Unread) else last.entries[-1].sequence
+                if self.seen_terms is not None:
+                    self.seen_terms.build(self.store, through)
                 for view in self.views:
                     view.build(through)
                 self._advance(through)
@@ -365,6 +373,8 @@ class ViewKeeper:
 
     def _prepare_all(self) -> None:
         current = self.store.applied_through() or 0
+        if self.seen_terms is not None:
+            self._prepare_seen_terms(self.seen_terms, current)
         for view in self.views:
             stored = view.stored_through()
             if stored is None:
@@ -380,6 +390,17 @@ class ViewKeeper:
             view.prepared()
             view.ready = True
         self._advance(current)
+
+    def _prepare_seen_terms(self, seen: SeenTerms, current: int) -> None:
+        """The registry of IRIs made to include the store through `current`, before any view's batch uses it."""
+        stored = seen.stored_through()
+        if stored is not None and stored >= current:
+            return
+        entries = [] if stored is None else self.journal.entries_after(stored, current - stored)
+        if stored is None or any(entry.action != "ingest" for entry in entries):  # absent, or triples went
+            seen.build(self.store, current)
+        else:
+            seen.admit(quads_of(entries), stored + 1, current)
 
     def _build(self, view: KeptView, through: int) -> None:
         started = time.perf_counter()
@@ -412,8 +433,14 @@ class ViewKeeper:
             else:
                 for view in self.views:
                     view.clear(at)
+                if self.seen_terms is not None:
+                    self.seen_terms.clear(at)
             steps = [step for step in steps[cleared + 1 :] if step.entries[-1].sequence > at]
-        delta = Delta.of([quad for step in steps for quad in step.quads])  # matched by every view
+        quads = [quad for step in steps for quad in step.quads]
+        fresh = frozenset[str]()
+        if self.seen_terms is not None and steps:  # registered before any view reads the batch
+            fresh = self.seen_terms.admit(quads, steps[0].entries[0].sequence, through)
+        delta = Delta.of(quads, fresh)  # matched by every view
         updates = [self._workers.submit(view.update, delta, through) for view in self.views]
         for update in updates:  # every one finishes before an error is raised: a retry starts from a quiet state
             update.exception()
@@ -426,6 +453,8 @@ class ViewKeeper:
         through `erased_at`); until a view is built again its answers are not served (reports are evaluated by
         their queries meanwhile), so nothing erased is served from old rows. Returns where the views now are."""
         current = max(erased_at, self.store.applied_through() or 0)
+        if self.seen_terms is not None:  # the erased IRIs' hashes go too
+            self.seen_terms.build(self.store, current)
         for view in self.views:
             view.ready = False
             view.clear(erased_at)

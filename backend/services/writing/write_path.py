@@ -18,6 +18,7 @@ from pyoxigraph import Quad
 from segb_server.backend.config import Settings
 from segb_server.backend.services.ops.leadership import LOCK_FILE, Leadership, SharedLeadership
 from segb_server.backend.services.upkeep.keeper import KeptView, ViewKeeper
+from segb_server.backend.services.upkeep.seen_terms import SEEN_TERMS_FILE, SeenTerms
 from segb_server.backend.services.writing.applier import Applied, Applier
 from segb_server.backend.services.writing.journal import Journal
 from segb_server.backend.services.writing.journal_file import journal_path
@@ -60,7 +61,8 @@ class WritePath:
         views_leadership = Leadership(None if in_memory else settings.data_dir / LOCK_FILE)
         apply_leadership = SharedLeadership(settings.state_url, "applier") if settings.state_url else views_leadership
         applier = Applier(journal, store, batch_triples=settings.apply_batch_triples, leadership=apply_leadership)
-        keeper = ViewKeeper(store, journal, views, views_leadership, applier, housekeeping)
+        seen_terms = SeenTerms(None if in_memory else settings.data_dir / SEEN_TERMS_FILE) if views else None
+        keeper = ViewKeeper(store, journal, views, views_leadership, applier, housekeeping, seen_terms=seen_terms)
         applier.on_applied(keeper.on_applied)
         return cls(journal, applier, keeper, apply_leadership, views_leadership)
 

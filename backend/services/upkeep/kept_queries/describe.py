@@ -54,7 +54,10 @@ def describe(query: CatalogQuery) -> list[str]:
             how = f"read from an index on ({' '.join(plan.group_by)}, {aggregate.argument})"
         distinct = "DISTINCT " if aggregate.distinct else ""
         lines.append(f"  {aggregate.output} = {aggregate.function.upper()}({distinct}{aggregate.argument}): {how}")
-    lines.append("  a new triple matching a pattern changes the rows of the keys these steps reach:")
+    lines.append(
+        "  a new triple matching a pattern changes the rows of the keys these steps reach (followed among the "
+        "batch's own triples while they go from resources the batch introduced, else asked of the store):"
+    )
     ignored = facet_patterns(plan)
     for pattern in plan.patterns:
         if pattern in ignored:

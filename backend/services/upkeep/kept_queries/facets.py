@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX
 from segb_server.backend.services.upkeep.delta import Delta, Fact
+from segb_server.backend.services.upkeep.kept_queries.delta_joins import DeltaJoin
 from segb_server.backend.services.upkeep.kept_queries.keys import (
     BRANCHES_PER_QUERY,
     VALUES_PER_QUERY,
@@ -29,6 +30,16 @@ class FacetPairs:
         self.facet = facet
         self.parameter = f"?{PARAMETER_VARIABLE_PREFIX}{facet.parameter}"
         self._matches = [(PatternMatch(plan, pattern), body) for body in facet.bodies for pattern in body]
+        # Each body from each of its patterns, as followed among a batch's triples (`delta_joins.py`).
+        self._joins = {
+            (match.pattern, body): DeltaJoin(
+                _without(body, match.pattern),
+                sorted(match.pattern.variables()),
+                [facet.anchor, self.parameter],
+                _allowed(plan, body),
+            )
+            for match, body in self._matches
+        }
 
     def all_pairs(self, store: Store) -> list[tuple[str, str]]:
         """Every pair in the store (one query per EXISTS body)."""
@@ -41,8 +52,9 @@ class FacetPairs:
         text, which the batch answers once."""
         branches: list[str] = []  # asked together
         alone: list[str] = []  # binding a literal: asked one by one (Virtuoso 7 fails such a branch in a UNION)
+        pairs: set[tuple[str, str]] = set()
         for match, body in self._matches:
-            facts: list[Fact] = match.facts(delta)
+            facts: list[Fact] = self._joined_in_delta(delta, match, body, pairs)
             if not facts:
                 continue
             names = sorted(match.pattern.variables())
@@ -53,11 +65,28 @@ class FacetPairs:
                 (alone if literal else branches).append(f"{{ {self._where(body, values)} }}")
         queries = [[branch] for branch in alone]
         queries += [branches[at : at + BRANCHES_PER_QUERY] for at in range(0, len(branches), BRANCHES_PER_QUERY)]
-        pairs: set[tuple[str, str]] = set()
         for group in queries:
             query = self._select(" UNION ".join(group))
             pairs.update(delta.answer(query, lambda text: self._answered(store, text)))
         return sorted(pairs)
+
+    def _joined_in_delta(
+        self, delta: Delta, match: PatternMatch, body: tuple[Pattern, ...], pairs: set[tuple[str, str]]
+    ) -> list[Fact]:
+        """Adds to `pairs` those of the new triples `match` takes whose join with the rest of `body` stays among
+        the batch's own resources (`delta_joins.py`); returns the triples whose join needs the store."""
+        if match.pattern.subject == match.pattern.object:  # `?x p ?x`: left to the store
+            return match.facts(delta)
+        join = self._joins[(match.pattern, body)]
+        names = sorted(match.pattern.variables())
+        asked = []
+        for fact in match.facts(delta):
+            found = join.run(delta, [match.text(fact, name) for name in names])
+            if found is None:
+                asked.append(fact)
+            else:
+                pairs.update((anchor, value) for anchor, value in found)
+        return asked
 
     def _pairs(self, store: Store, body: tuple[Pattern, ...], values: str) -> set[tuple[str, str]]:
         return self._answered(store, self._select(self._where(body, values)))
@@ -76,6 +105,22 @@ class FacetPairs:
             if anchor is not None and value is not None:
                 found.add((term_text(anchor), term_text(value)))
         return found
+
+
+def _without(body: tuple[Pattern, ...], pattern: Pattern) -> list[Pattern]:
+    rest = list(body)
+    rest.remove(pattern)
+    return rest
+
+
+def _allowed(plan: ReportPlan, body: tuple[Pattern, ...]) -> dict[str, frozenset[str]]:
+    """The texts the VALUES of `body`'s groups allow each variable (several VALUES of one variable: all hold)."""
+    groups = {pattern.group for pattern in body}
+    allowed: dict[str, frozenset[str]] = {}
+    for (group, variable), values in plan.narrowed.items():
+        if group in groups:
+            allowed[variable] = allowed[variable] & values if variable in allowed else values
+    return allowed
 
 
 def facet_patterns(plan: ReportPlan) -> frozenset[Pattern]:

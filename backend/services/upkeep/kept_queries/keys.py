@@ -9,11 +9,12 @@ the units of this one triple.
 
 from __future__ import annotations
 
-import re
 from collections import deque
 from dataclasses import dataclass
+from functools import cached_property
 
 from segb_server.backend.services.upkeep.delta import Delta, Fact
+from segb_server.backend.services.upkeep.kept_queries.delta_joins import Alias, DeltaJoin, Step
 from segb_server.backend.services.upkeep.kept_queries.plan import Pattern, ReportPlan, Unsupported
 from segb_server.backend.store.base import Store, select
 from segb_server.backend.store.terms import term_text
@@ -78,7 +79,7 @@ class KeyFinder:
         units: set[str] = set()
         # The VALUES rows of each chain, gathered over every pattern leading to it: the patterns of one resource
         # (an activity's type, robot, time, …) share their chains, and each row is asked once for all of them.
-        rows_by_chain: dict[_Chain, dict[str, bool]] = {}  # a VALUES row → whether it binds a literal
+        rows_by_chain: dict[_Chain, dict[tuple[str, ...], bool]] = {}  # a chain's start → whether it binds a literal
         for lead in self._leads:
             facts = lead.match.facts(delta)
             if not facts:
@@ -89,14 +90,22 @@ class KeyFinder:
             for chain in lead.chains:
                 rows = rows_by_chain.setdefault(chain, {})
                 for fact in facts:
-                    row = "(" + " ".join(lead.match.text(fact, name) for name in chain.names) + ")"
-                    rows[row] = rows.get(row, False) or lead.match.binds_literal(fact, chain.names)
+                    origin = tuple(lead.match.text(fact, name) for name in chain.names)
+                    rows[origin] = rows.get(origin, False) or lead.match.binds_literal(fact, chain.names)
+        asked: dict[_Chain, list[tuple[str, bool]]] = {}  # the VALUES rows of each chain the store is asked
+        for chain, rows in rows_by_chain.items():
+            for origin, literal in rows.items():
+                # A chain from the batch's own resources is followed among its triples (`delta_joins.py`).
+                found = chain.join.run(delta, origin)
+                if found is None:
+                    asked.setdefault(chain, []).append(("(" + " ".join(origin) + ")", literal))
+                else:
+                    units.update(unit for (unit,) in found)
         branches: list[str] = []  # asked together
         alone: list[str] = []  # asked one by one
-        for chain, rows in rows_by_chain.items():
+        for chain, listed in asked.items():
             # One branch per chain, each opening with its own VALUES: they must bind the chain's own group (a BIND
             # in a UNION branch would not see VALUES outside it, and the branch would reach every unit of the store).
-            listed = list(rows.items())
             for start in range(0, len(listed), VALUES_PER_QUERY):
                 chunk = listed[start : start + VALUES_PER_QUERY]
                 values = " ".join(row for row, _ in chunk)
@@ -116,8 +125,23 @@ class KeyFinder:
 
 @dataclass(frozen=True)
 class _Chain:
-    steps: str  # the SPARQL steps from the pattern's variables to the unit
+    links: tuple[Step, ...]  # the steps from the pattern's variables to the unit
     names: tuple[str, ...]  # the pattern's variables the steps go on from (bound by VALUES)
+    target: str
+
+    @cached_property
+    def join(self) -> DeltaJoin:
+        """The chain as followed among a batch's triples."""
+        return DeltaJoin(self.links, self.names, [self.target])
+
+    @property
+    def steps(self) -> str:
+        """The steps as SPARQL."""
+        return " ".join(_sparql(link) for link in self.links)
+
+
+def _sparql(step: Step) -> str:
+    return f"BIND ({step.source} AS {step.target})" if isinstance(step, Alias) else step.sparql()
 
 
 @dataclass(frozen=True, eq=False)
@@ -134,17 +158,18 @@ def chains(plan: ReportPlan, pattern: Pattern, target: str) -> list[_Chain]:
         # Only the variables the chain goes on from: a chain from a triple's subject needs no VALUES of its
         # object, and leaving a literal object out lets the branch join the others' UNION.
         names = sorted(name for name in pattern.variables() if _mentions(path, name)) or sorted(pattern.variables())
-        chains.append(_Chain(" ".join(path), tuple(names)))
+        chains.append(_Chain(tuple(path), tuple(names), target))
     return chains
 
 
-def _mentions(path: list[str], variable: str) -> bool:
-    """Whether a chain's steps use `variable` (`?t` is not in `?text`)."""
-    used = re.compile(re.escape(variable) + r"(?![A-Za-z0-9_])")
-    return any(used.search(step) for step in path)
+def _mentions(path: list[Step], variable: str) -> bool:
+    """Whether a chain's steps use `variable`."""
+    return any(
+        variable in ((step.source, step.target) if isinstance(step, Alias) else step.variables()) for step in path
+    )
 
 
-def paths(plan: ReportPlan, start: Pattern, target: str) -> list[list[str]]:
+def paths(plan: ReportPlan, start: Pattern, target: str) -> list[list[Step]]:
     """Chains of SPARQL steps from `start`'s variables to `target`, each made of patterns that hold whenever
     `start` is matched (one chain per UNION branch it may have come through) and of BIND aliases. Unsupported
     when there is none."""
@@ -174,18 +199,18 @@ def _sources(start: Pattern) -> list[set[str]]:
 
 def _shortest(
     sources: set[str], usable: list[Pattern], aliases: list[tuple[str, str]], target: str
-) -> list[str] | None:
+) -> list[Step] | None:
     """Breadth first over variables from `sources`: a pattern joins its variables; an alias binds one from the
     other."""
-    frontier: deque[tuple[str, list[str]]] = deque((variable, []) for variable in sorted(sources))
+    frontier: deque[tuple[str, list[Step]]] = deque((variable, []) for variable in sorted(sources))
     seen = set(sources)
     while frontier:
         variable, path = frontier.popleft()
         if variable == target:
             return path
-        steps = [(other, pattern.sparql()) for pattern in usable if variable in pattern.variables()
-                 for other in pattern.variables() - {variable}]  # fmt: skip
-        steps += [(b if a == variable else a, f"BIND ({variable} AS {b if a == variable else a})")
+        steps: list[tuple[str, Step]] = [(other, pattern) for pattern in usable if variable in pattern.variables()
+                                         for other in pattern.variables() - {variable}]  # fmt: skip
+        steps += [(b if a == variable else a, Alias(variable, b if a == variable else a))
                   for a, b in aliases if variable in (a, b)]  # fmt: skip
         for other, step in steps:
             if other not in seen:

@@ -94,6 +94,9 @@ class ReportPlan:
     # (group, ?x) → the only IRIs ?x may be in that group (its `VALUES ?x { … }` or `FILTER (?x IN (…))`): a
     # triple with another term there matches none of the group's patterns, so it touches no key through them
     narrowed: dict[tuple[int, str], frozenset[str]] = field(default_factory=dict)
+    # The patterns every solution matches: the top group's own (none when a sub-select's patterns, whose variables
+    # are its own, are among them)
+    required: list[Pattern] = field(default_factory=list)
 
     @property
     def is_aggregate(self) -> bool:
@@ -157,6 +160,7 @@ def plan_report(query: CatalogQuery) -> ReportPlan:
         branches=walker.branches,
         aliases=walker.aliases,
         narrowed=walker.narrowed,
+        required=[] if walker.projections > 1 else walker.mandatory[root],
     )
     if plan.is_aggregate:
         if not all(name in plan.group_by or name in {a.output for a in plan.aggregates} for name in columns):
@@ -188,6 +192,7 @@ class _Walker:
         self.branches: dict[int, int] = {}
         self.aliases: list[tuple[str, str]] = []
         self.narrowed: dict[tuple[int, str], frozenset[str]] = {}
+        self.projections = 0  # more than one: a sub-select
         self._fresh = itertools.count()
 
     def new_group(self, parent: int | None) -> int:
@@ -224,6 +229,7 @@ class _Walker:
             return
         name = node.name
         if name in ("SelectQuery", "Project", "Distinct", "Reduced", "Slice", "ToMultiSet"):
+            self.projections += name == "Project"
             self.visit(node.get("p"), group)
         elif name == "OrderBy":
             for condition in node["expr"]:

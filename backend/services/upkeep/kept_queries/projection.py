@@ -18,6 +18,7 @@ from dataclasses import replace
 
 from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, CatalogQuery
 from segb_server.backend.services.upkeep.delta import Delta
+from segb_server.backend.services.upkeep.kept_queries.delta_joins import DeltaJoin
 from segb_server.backend.services.upkeep.kept_queries.facets import FacetPairs, facet_patterns
 from segb_server.backend.services.upkeep.kept_queries.keys import VALUES_PER_QUERY, KeyFinder
 from segb_server.backend.services.upkeep.kept_queries.plan import (
@@ -112,6 +113,9 @@ class KeptQuery:
         self.text = bind_values(text, {PARAMETER_VARIABLE_PREFIX + p: None for p in layout.parameters})
         self.keys = KeyFinder(plan, unit, ignored=facet_patterns(plan))
         self.facets = [FacetPairs(plan, facet) for facet in plan.facet_filters]
+        # What every row needs (the query's top-level patterns), as far as it can be joined among a batch's triples
+        # from a key the batch introduced: with no solution there, that key has no row to ask the store for.
+        self._needed = DeltaJoin(plan.required, [f"?{unit}"], [f"?{unit}"], relaxed=True)
 
     def stored_through(self) -> int | None:
         fingerprint, through = self.rows.state(self.name)
@@ -152,7 +156,8 @@ class KeptQuery:
         facets: list[tuple[FacetFilter, list[tuple[str, str]]]] = []
         if delta:
             replaced = sorted(self.keys.units(delta, self.store))
-            rows = self._evaluate(replaced) if replaced else {}
+            asked = [unit for unit in replaced if self._needed.run(delta, [unit]) != []]
+            rows = self._evaluate(asked) if asked else {}
             facets = [(pairs.facet, new) for pairs in self.facets if (new := pairs.new_pairs(delta, self.store))]
         with self.rows.db.writing():
             if replaced:

@@ -1,0 +1,202 @@
+"""Joins followed among a batch's own triples instead of asked of the store, where that gives the same answer.
+
+A view asks the store which of its keys (or facet pairs) a batch's new triples reach: a join from each new
+triple through the query's patterns. Most of those joins start from resources the batch itself introduced (a
+robot's new activity, the message it produced, the visitor it met): every triple the store holds about such a
+`fresh` term is one of the batch's own (`upkeep/seen_terms.py`), so a step from it can be taken among the
+batch's triples, with no store lookup. A join is followed here only while every step goes from a fresh term;
+the first step from any other term (the robot, a model, a class: a hub with years of history) gives up, and
+that join is asked of the store as before. The answers are the store's: the differential tests compare the
+views kept this way with full evaluations, on both stores.
+
+A join's order is fixed when the query is planned (`DeltaJoin`): which variables are bound where does not
+depend on the values, so a batch only runs the steps.
+
+A `relaxed` join answers a weaker question, whether a key the batch introduced can have any row at all: the
+steps it cannot take among the batch's triples are left out, and fewer patterns only allow more solutions. No
+solution then means the query has none for that key, whose evaluation the view skips.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+from segb_server.backend.services.upkeep.delta import Delta, Fact
+from segb_server.backend.services.upkeep.kept_queries.plan import Pattern
+
+
+@dataclass(frozen=True)
+class Alias:
+    """`BIND (?source AS ?target)`."""
+
+    source: str
+    target: str
+
+
+Step = Pattern | Alias
+
+
+@dataclass(frozen=True)
+class _End:
+    """One end of a triple pattern in a compiled join: a constant text, a slot bound before the step, or a slot
+    the step binds (with the texts it allows, if its group's VALUES narrow it)."""
+
+    constant: str | None = None
+    slot: int = -1
+    binds: bool = False
+    allowed: frozenset[str] | None = None
+
+
+@dataclass(frozen=True)
+class _Hop:
+    predicates: tuple[str, ...]
+    subject: _End
+    object: _End
+
+
+@dataclass(frozen=True)
+class _Copy:
+    """An alias: `target` takes `source`'s term (or, when already bound, must equal it)."""
+
+    source: int
+    target: int
+    binds: bool
+    allowed: frozenset[str] | None
+
+
+class DeltaJoin:
+    """`steps` (triple patterns and aliases, joined) from the variables `start`, giving the variables `out`."""
+
+    def __init__(
+        self,
+        steps: Sequence[Step],
+        start: Sequence[str],
+        out: Sequence[str],
+        allowed: Mapping[str, frozenset[str]] | None = None,
+        *,
+        relaxed: bool = False,
+    ) -> None:
+        allowed = dict(allowed or {})
+        self.relaxed = relaxed
+        self._start_allowed = [allowed.get(variable) for variable in start]
+        self._ops: list[_Hop | _Copy] = []
+        slots = {variable: index for index, variable in enumerate(start)}
+        # A literal is written in more than one way: only IRIs are compared as texts here, the rest by the store.
+        self.usable = all(text.startswith("<") for values in allowed.values() for text in values)
+        remaining = list(steps)
+        while remaining and self.usable:
+            index = _next_step(remaining, set(slots))
+            if index is None:
+                self.usable = relaxed  # a step from nothing bound would be a scan: the store's work
+                break
+            step = remaining.pop(index)
+            if isinstance(step, Alias):
+                binds = step.target not in slots
+                target = slots.setdefault(step.target, len(slots))
+                self._ops.append(_Copy(slots[step.source], target, binds, allowed.get(step.target)))
+                continue
+            literal = not step.object.startswith("?") and not step.object.startswith("<")
+            if literal or (step.subject == step.object and step.subject not in slots):  # a literal; `?x p ?x`
+                self.usable = relaxed
+                continue
+            subject = _end(step.subject, slots, allowed)
+            object_ = _end(step.object, slots, allowed)
+            self._ops.append(_Hop(tuple(sorted(step.predicates)), subject, object_))
+        self._width = len(slots)
+        self._out = [slots.get(variable, -1) for variable in out]
+        if -1 in self._out:
+            self.usable = False
+
+    def run(self, delta: Delta, values: Sequence[str]) -> list[tuple[str, ...]] | None:
+        """The `out` terms of each solution extending `values` (the texts of `start`), found among the delta's
+        triples; None when a step would start from a term that is not fresh (the store may hold older triples
+        about it), or the join cannot be followed here at all."""
+        if not self.usable or not delta.fresh:
+            return None
+        for value, allowed in zip(values, self._start_allowed, strict=True):
+            if allowed is not None and value not in allowed:
+                return []
+        rows: list[list[str | None]] = [[*values, *([None] * (self._width - len(values)))]]
+        fresh = delta.fresh
+        for op in self._ops:
+            if isinstance(op, _Copy):
+                rows = _copied(rows, op)
+                continue
+            extended: list[list[str | None]] = []
+            for row in rows:
+                subject = op.subject.constant if op.subject.constant is not None else row[op.subject.slot]
+                object_ = op.object.constant if op.object.constant is not None else row[op.object.slot]
+                if subject is not None and subject in fresh:
+                    facts: list[Fact] = [fact for p in op.predicates for fact in delta.about(p, subject)]
+                elif object_ is not None and object_ in fresh:
+                    facts = [fact for p in op.predicates for fact in delta.with_predicate(p, object_)]
+                elif self.relaxed:
+                    extended.append(row)  # the step left out for this row (its variable stays unbound)
+                    continue
+                else:
+                    return None  # the store may hold older triples of this step
+                for fact in facts:
+                    found = _extended(row, op.subject, subject, fact.subject_text)
+                    if found is not None:
+                        found = _extended(found, op.object, object_, fact.object_text)
+                    if found is not None:
+                        extended.append(found)
+            rows = extended
+            if not rows:
+                return []
+        return [tuple(row[slot] for slot in self._out) for row in rows]  # type: ignore[misc]
+
+
+def _end(term: str, slots: dict[str, int], allowed: Mapping[str, frozenset[str]]) -> _End:
+    if not term.startswith("?"):
+        return _End(constant=term)
+    if term in slots:
+        return _End(slot=slots[term])
+    slots[term] = len(slots)
+    return _End(slot=slots[term], binds=True, allowed=allowed.get(term))
+
+
+def _extended(row: list[str | None], end: _End, known: str | None, text: str) -> list[str | None] | None:
+    """`row` with `end` taking `text` from a matching triple; None when it cannot."""
+    if not end.binds and known is not None:
+        return row if known == text else None
+    if end.allowed is not None and text not in end.allowed:
+        return None
+    copy = row.copy()
+    copy[end.slot] = text  # (a relaxed join's variable left unbound by a step it left out is bound here)
+    return copy
+
+
+def _copied(rows: list[list[str | None]], op: _Copy) -> list[list[str | None]]:
+    kept = []
+    for row in rows:
+        value = row[op.source]
+        if value is None:  # a relaxed join left its source unbound: nothing to compare or copy
+            kept.append(row)
+            continue
+        if not op.binds and row[op.target] is not None:
+            if row[op.target] == value:
+                kept.append(row)
+            continue
+        if op.allowed is not None and value not in op.allowed:
+            continue
+        copy = row.copy()
+        copy[op.target] = value
+        kept.append(copy)
+    return kept
+
+
+def _next_step(steps: list[Step], bound: set[str]) -> int | None:
+    """The next step to take: an alias from a bound variable, else a pattern with a bound variable, else one
+    with a constant (a class, often a hub)."""
+    for index, step in enumerate(steps):
+        if isinstance(step, Alias) and step.source in bound:
+            return index
+    for index, step in enumerate(steps):
+        if isinstance(step, Pattern) and (step.subject in bound or step.object in bound):
+            return index
+    for index, step in enumerate(steps):
+        if isinstance(step, Pattern) and (not step.subject.startswith("?") or not step.object.startswith("?")):
+            return index
+    return None
