@@ -105,7 +105,7 @@ class ShapeFindings:
         checked: dict[str, tuple[set[str], dict[str, list[Record]]]] = {}
         if delta:
             # Every rule's targets among the nodes the batch names, then their statements read once for all.
-            found = check_rules(self.rules, self.store, _named_nodes(delta))
+            found = check_rules(self.rules, self.store, _named_nodes(delta), delta)
             checked = {rule_id: (units, self._records(rows)) for rule_id, (units, rows) in found.items()}
         changed = False
         with self.db.writing() as connection:
@@ -262,16 +262,17 @@ def check_shapes(rule: ShapeRule, store: Store, named: set[str] | None) -> tuple
 
 
 def check_rules(
-    rules: list[ShapeRule], store: Store, named: set[str] | None
+    rules: list[ShapeRule], store: Store, named: set[str] | None, delta: Delta | None = None
 ) -> dict[str, tuple[set[str], dict[str, list[Found]]]]:
     """`check_shapes` for several rules, their targets' statements read once for all: every candidate's (the
     targets most shapes declare — a type, a predicate the node is the subject of — are read off them), or, for a
-    full check (`named` None), the targets the store answers for."""
+    full check (`named` None), the targets the store answers for. `delta`: the batch naming the candidates,
+    whose triples are all there is about its fresh ones."""
     if named is not None:
         candidates = sorted(node for node in named if node.startswith("<"))
         predicates = _union([rule.statement_predicates() for rule in rules])
-        data, contexts = statements(store, candidates, predicates) if candidates else (NodeStatements(), {})
-        targets = {rule.rule.id: rule.targets_among(store, candidates, data) for rule in rules}
+        data, contexts = statements(store, candidates, predicates, delta) if candidates else (NodeStatements(), {})
+        targets = {rule.rule.id: rule.targets_among(store, candidates, data, delta) for rule in rules}
     else:
         targets = {rule.rule.id: rule.targets(store, None) for rule in rules}
         nodes = sorted({node for found in targets.values() for nodes in found.values() for node in nodes})

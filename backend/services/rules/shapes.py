@@ -26,6 +26,7 @@ from rdflib.term import Node
 from segb_server.backend.services.rules.catalog import Rule
 from segb_server.backend.services.rules.shape_check import PropertyCheck, as_rdflib, check_node, compile_shape
 from segb_server.backend.services.sparql.parser import exclusive
+from segb_server.backend.services.upkeep.delta import Delta
 from segb_server.backend.store.base import Store, select
 from segb_server.backend.store.sparql_text import top_level_where, top_level_where_end
 from segb_server.backend.store.terms import bind_rows, term_text
@@ -119,10 +120,12 @@ class ShapeRule:
                     found[shape].update(_ask_targets(store, query, chunk))
         return found
 
-    def targets_among(self, store: Store, candidates: list[str], data: NodeStatements) -> dict[URIRef, set[str]]:
+    def targets_among(
+        self, store: Store, candidates: list[str], data: NodeStatements, delta: Delta | None = None
+    ) -> dict[URIRef, set[str]]:
         """Each shape's targets among `candidates` (N-Triples texts of IRIs) whose statements `data` holds: the
-        targets their own statements tell, from them; the others (objects of a predicate, a SPARQL target) from
-        the store."""
+        targets their own statements tell, from them; the objects of a predicate, from `delta` for the batch's
+        fresh nodes (every triple naming them is the batch's); the others from the store."""
         found: dict[URIRef, set[str]] = {shape: set() for shape in self.shapes}
         for shape, (nodes, classes, predicates, asked) in self._own.items():
             found[shape].update(node for node in candidates if node in nodes)
@@ -132,9 +135,16 @@ class ShapeRule:
                     data.says(node, str(predicate)) for predicate in predicates
                 ):
                     found[shape].add(node)
-            for query in asked:
-                for chunk in _chunks(candidates):
-                    found[shape].update(_ask_targets(store, query, chunk))
+            for target in asked:
+                remaining = candidates
+                if delta is not None and target.predicate is not None:
+                    predicate = target.predicate
+                    found[shape].update(
+                        node for node in candidates if node in delta.fresh and delta.with_predicate(predicate, node)
+                    )
+                    remaining = [node for node in candidates if node not in delta.fresh]
+                for chunk in _chunks(remaining):
+                    found[shape].update(_ask_targets(store, target.query, chunk))
         return found
 
     def statement_predicates(self) -> frozenset[str] | None:
@@ -187,12 +197,22 @@ class ShapeRule:
 
 
 def statements(
-    store: Store, nodes: list[str], predicates: frozenset[str] | None
+    store: Store, nodes: list[str], predicates: frozenset[str] | None, delta: Delta | None = None
 ) -> tuple[NodeStatements, dict[str, Context]]:
-    """The nodes' statements with these predicates (None: all), and each node's context."""
+    """The nodes' statements with these predicates (None: all), and each node's context. Those of the fresh
+    nodes of `delta` are its own triples about them (the store holds no other), the others' are asked."""
     data = NodeStatements()
     contexts: dict[str, dict[str, object]] = {}
     wanted = None if predicates is None else sorted({*predicates, *TIMES, *ACTORS, str(RDF.type)})
+    if delta is not None and delta.fresh:
+        told = [node for node in nodes if node in delta.fresh]
+        for predicate in delta.predicates() if wanted is None else set(wanted) & delta.predicates():
+            for node in told:
+                # Once each, as the store holds a triple (a batch may carry one twice: a count must not see two).
+                for fact in {fact.object_text: fact for fact in delta.about(predicate, node)}.values():
+                    data.add(node, predicate, fact.object)
+                    _note_context(contexts.setdefault(node, {}), predicate, fact.object)
+        nodes = [node for node in nodes if node not in delta.fresh]
     for chunk in _chunks(nodes):
         text = "SELECT ?s ?p ?o WHERE { ?s ?p ?o }"
         if wanted is not None:
@@ -261,19 +281,29 @@ def _target_queries(graph: Graph, shape: Node) -> list[str]:
     ]
     told += [f"SELECT DISTINCT ?this WHERE {{ ?this a <{cls}> }}" for cls in classes]
     told += [f"SELECT DISTINCT ?this WHERE {{ ?this <{predicate}> ?anyObject }}" for predicate in predicates]
-    return told + asked
+    return told + [target.query for target in asked]
 
 
-def _own_targets(graph: Graph, shape: Node) -> tuple[set[str], list[URIRef], list[URIRef], list[str]]:
+@dataclass(frozen=True)
+class Asked:
+    """A target the store is asked for: the objects of a predicate (`predicate`), or a SPARQL-based target."""
+
+    query: str
+    predicate: str | None = None
+
+
+def _own_targets(graph: Graph, shape: Node) -> tuple[set[str], list[URIRef], list[URIRef], list[Asked]]:
     """A shape's targets a node's own statements tell — its IRI (`sh:targetNode`), a type (`sh:targetClass`), a
     predicate it is the subject of (`sh:targetSubjectsOf`) — and the queries of the others (the objects of a
     predicate, a SPARQL-based target)."""
     nodes = {f"<{node}>" for node in graph.objects(shape, SH.targetNode) if isinstance(node, URIRef)}
     classes = [cls for cls in graph.objects(shape, SH.targetClass) if isinstance(cls, URIRef)]
     predicates = [p for p in graph.objects(shape, SH.targetSubjectsOf) if isinstance(p, URIRef)]
-    asked = [f"SELECT DISTINCT ?this WHERE {{ ?anySubject <{p}> ?this }}"
-             for p in graph.objects(shape, SH.targetObjectsOf)]  # fmt: skip
-    asked += [str(text) for target in graph.objects(shape, SH.target) if (text := graph.value(target, SH.select))]
+    asked = [Asked(f"SELECT DISTINCT ?this WHERE {{ ?anySubject <{p}> ?this }}", str(p))
+             for p in graph.objects(shape, SH.targetObjectsOf) if isinstance(p, URIRef)]  # fmt: skip
+    asked += [
+        Asked(str(text)) for target in graph.objects(shape, SH.target) if (text := graph.value(target, SH.select))
+    ]
     return nodes, classes, predicates, asked
 
 

@@ -67,6 +67,12 @@ def describe(query: CatalogQuery) -> list[str]:
             continue
         for chain in chains(plan, pattern, f"?{unit}"):
             lines.append(f"    {_short(pattern.sparql())}  → from {' '.join(chain.names)}: {_short(chain.steps)}")
+    if plan.required:
+        required = " ".join(_short(pattern.sparql()) for pattern in plan.required)
+        lines.append(
+            f"  a key the batch introduced is evaluated only when what every row needs can match among the batch's "
+            f"triples: {required}"
+        )
     return lines
 
 

@@ -38,6 +38,8 @@ class PatternMatch:
         self._objects = plan.narrowed.get((pattern.group, pattern.object)) if self._object is None else None
 
     def facts(self, delta: Delta) -> list[Fact]:
+        if self._subject is None and self._subjects is None and self._objects is None and len(self._predicates) == 1:
+            return delta.with_predicate(self._predicates[0], self._object)  # most patterns: nothing to sift
         found = []
         for predicate in self._predicates:
             for fact in delta.with_predicate(predicate, self._object):
@@ -87,11 +89,13 @@ class KeyFinder:
             if not lead.chains:
                 units.update(lead.match.text(fact, self.target) for fact in facts)
                 continue
-            for chain in lead.chains:
+            for chain, picks, object_named in lead.routes:
                 rows = rows_by_chain.setdefault(chain, {})
                 for fact in facts:
-                    origin = tuple(lead.match.text(fact, name) for name in chain.names)
-                    rows[origin] = rows.get(origin, False) or lead.match.binds_literal(fact, chain.names)
+                    origin = tuple([fact.subject_text if subject else fact.object_text for subject in picks])
+                    literal = object_named and fact.literal_object
+                    if literal or origin not in rows:
+                        rows[origin] = rows.get(origin, False) or literal
         asked: dict[_Chain, list[tuple[str, bool]]] = {}  # the VALUES rows of each chain the store is asked
         for chain, rows in rows_by_chain.items():
             for origin, literal in rows.items():
@@ -150,6 +154,16 @@ class _Lead:
 
     match: PatternMatch
     chains: list[_Chain]
+
+    @cached_property
+    def routes(self) -> list[tuple[_Chain, tuple[bool, ...], bool]]:
+        """Each chain, which of the matched triple's terms its start takes (True: the subject, else the object),
+        and whether it takes the object (a literal there makes its branch be asked alone)."""
+        pattern = self.match.pattern
+        return [
+            (chain, tuple(name == pattern.subject for name in chain.names), pattern.object in chain.names)
+            for chain in self.chains
+        ]
 
 
 def chains(plan: ReportPlan, pattern: Pattern, target: str) -> list[_Chain]:

@@ -155,9 +155,11 @@ class KeptQuery:
         rows: dict[str, list[Row]] = {}
         facets: list[tuple[FacetFilter, list[tuple[str, str]]]] = []
         if delta:
-            replaced = sorted(self.keys.units(delta, self.store))
-            asked = [unit for unit in replaced if self._needed.run(delta, [unit]) != []]
-            rows = self._evaluate(asked) if asked else {}
+            # A key the batch introduced whose rows would need a triple the batch lacks had none before it (no
+            # triple named it) and has none now: nothing to evaluate, replace or announce.
+            units = self.keys.units(delta, self.store)
+            replaced = sorted(unit for unit in units if self._needed.run(delta, [unit]) != [])
+            rows = self._evaluate(replaced) if replaced else {}
             facets = [(pairs.facet, new) for pairs in self.facets if (new := pairs.new_pairs(delta, self.store))]
         with self.rows.db.writing():
             if replaced:
