@@ -48,10 +48,11 @@ def test_the_keys_a_post_touches_do_not_grow_with_the_log(live_api: LiveServer) 
         answer = live_api.post("/ttl", content=post.payload, headers={"Content-Type": "text/turtle"})
         assert answer.status_code == 201, answer.text
         settle(live_api.url)
-        # Each post's changes are heard before the next post: each event holds one post's keys.
+        # Each post's changes are heard before the next post: each event holds one post's keys. (A post that
+        # changes no report's rows, as the robot's description alone, is announced by none: nothing to hear.)
         included = live_api.get("/reports/conversations", params={"limit": 1}).json()["last_event_id"]
         with heard:
-            assert heard.wait_for(lambda at=included: bool(positions) and positions[-1] >= at, timeout=30)
+            assert heard.wait_for(lambda at=included: at == 0 or (bool(positions) and positions[-1] >= at), timeout=30)
     client.close()
     listener.join(timeout=10)
     by_report: dict[str, list[int]] = {}

@@ -4,7 +4,8 @@ A view (a report's rows, the graph index) is a `KeptView`: built once from the w
 from what each applied journal step added, and emptied by a clearing. The `ViewKeeper` runs them all in one
 background thread fed by the applier, so every view follows the same stream in the same order. A view
 records the journal sequence it includes: after a restart it catches up from the journal instead of being
-built again.
+built again. Before a batch reaches the views, the registry of the IRIs the store holds (`seen_terms.py`) takes
+it, and tells them which of the batch's IRIs are fresh: joins from those are followed among the batch's triples.
 
 On a remote store the views of one batch are updated side by side, each in a worker thread of its own: their
 work is mostly waiting for the store's answers (a round trip per query), so a batch takes as long as its
