@@ -53,7 +53,6 @@ class Delta:
         self._by_object: dict[str, dict[str, list[Fact]]] = {}  # predicate → object text → facts
         self._by_subject: dict[str, dict[str, list[Fact]]] = {}  # predicate → subject text → facts
         self._answers: dict[str, object] = {}  # query text → the store's answer, for this batch
-        self.joins: dict[tuple[int, tuple[str, ...]], object] = {}  # a join's shape and start → its solutions
         self._answers_lock = threading.Lock()  # views of a remote store ask side by side
 
     @classmethod

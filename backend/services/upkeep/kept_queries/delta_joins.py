@@ -12,10 +12,6 @@ views kept this way with full evaluations, on both stores.
 A join's order is fixed when the query is planned (`DeltaJoin`): which variables are bound where does not
 depend on the values, so a batch only runs the steps.
 
-Views of one batch follow many of the same joins (the reports and the timeline's kinds share their chains from
-an activity to its message, from a message to its human): a join's shape is numbered when it is compiled, and
-the batch keeps each answer by shape and start (`Delta.joins`), for the batch only.
-
 A `relaxed` join answers a weaker question, whether a key the batch introduced can have any row at all: the
 steps it cannot take among the batch's triples are left out, and fewer patterns only allow more solutions. No
 solution then means the query has none for that key, whose evaluation the view skips.
@@ -39,10 +35,6 @@ class Alias:
 
 
 Step = Pattern | Alias
-
-
-_SHAPES: dict[object, int] = {}  # a compiled join's steps → its number (joins are compiled when views are planned)
-_UNKNOWN = object()
 
 
 @dataclass(frozen=True)
@@ -115,8 +107,6 @@ class DeltaJoin:
         self._out = [slots.get(variable, -1) for variable in out]
         if -1 in self._out:
             self.usable = False
-        signature = (tuple(self._ops), tuple(self._out), tuple(self._start_allowed), self._width, relaxed, self.usable)
-        self.shape = _SHAPES.setdefault(signature, len(_SHAPES))
 
     def run(self, delta: Delta, values: Sequence[str]) -> list[tuple[str, ...]] | None:
         """The `out` terms of each solution extending `values` (the texts of `start`), found among the delta's
@@ -124,15 +114,6 @@ class DeltaJoin:
         about it), or the join cannot be followed here at all."""
         if not self.usable or not delta.fresh:
             return None
-        key = (self.shape, tuple(values))
-        known = delta.joins.get(key, _UNKNOWN)
-        if known is not _UNKNOWN:
-            return known  # type: ignore[return-value]
-        found = self._run(delta, values)
-        delta.joins[key] = found  # views asking side by side may both work it out: the same answer
-        return found
-
-    def _run(self, delta: Delta, values: Sequence[str]) -> list[tuple[str, ...]] | None:
         for value, allowed in zip(values, self._start_allowed, strict=True):
             if allowed is not None and value not in allowed:
                 return []

@@ -76,6 +76,9 @@ class KeyFinder:
             for pattern in plan.patterns
             if pattern not in ignored
         ]  # fmt: skip
+        for lead in self._leads:  # compiled now, in one thread, rather than by the first batch's views at once
+            for chain, _, _ in lead.routes:
+                chain.join  # noqa: B018
 
     def units(self, delta: Delta, store: Store) -> set[str]:
         units: set[str] = set()
