@@ -54,12 +54,14 @@ class Profile:
     report_sizes: tuple[int, ...]
     report_repeats: int
     steady_seconds: float  # how long one robot posts at LIVE_RATE for the apply lag
-    live_posts: int  # posts ready for the robot publishing while reports are measured (it stops when they run out)
+    # Posts ready for the robot publishing while reports are measured: it stops when they run out, so enough for
+    # a cold machine's Chromium and UI start-up before the watch begins (600 at LIVE_RATE is a minute).
+    live_posts: int
     browser_seconds: float  # how long its conversations are watched in Chromium, before the pages are measured
 
 
 PROFILES = {
-    "tiny": Profile(30, 4, 6, 8, (2_000,), 3, 2, 60, 2),
+    "tiny": Profile(30, 4, 6, 8, (2_000,), 3, 2, 600, 2),
     "quick": Profile(300, 16, 100, 100, (100_000,), 20, 20, 3_000, 10),
     "full": Profile(2_000, 16, 200, 1_000, (100_000, 1_000_000), 30, 20, 6_000, 10),
 }

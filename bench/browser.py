@@ -64,6 +64,8 @@ def watch_conversations(
                 browser.close()
     except Error as error:
         return InPage(None, 0, 0, f"Chromium: {' '.join(str(error).split())[:200]}")
+    if not watched:
+        return InPage(None, 0, 0, "no post with messages was answered while the page was watched")
     delays = [
         max(seen[message] for message in messages) / 1000 - at
         for messages, at in watched
