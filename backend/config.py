@@ -62,6 +62,15 @@ class Settings(BaseSettings):
     ingest_apply_timeout_seconds: float = Field(
         10.0, gt=0, description="With INGEST_ACK=store, how long a post waits for the store before a 503."
     )
+    views_max_lag_seconds: float = Field(
+        3.0,
+        ge=0,
+        description="While the reports are further behind than this (seconds), a post's answer waits for them, so "
+        "robots slow down to the pace the views keep (0 = answers never wait).",
+    )
+    views_max_hold_seconds: float = Field(
+        10.0, ge=0, description="Longest a post's answer waits for the views (VIEWS_MAX_LAG_SECONDS)."
+    )
     journal_max_backlog: int = Field(
         100_000, ge=0, description="Entries the store may fall behind the journal before posts get 503 (0 = no limit)."
     )

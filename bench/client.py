@@ -18,17 +18,21 @@ class BenchError(Exception):
 
 
 class Client:
-    """One kept-alive connection; not thread-safe (each robot thread has its own)."""
+    """One kept-alive connection; not thread-safe (each robot thread has its own). `connection_per_request`: a
+    new connection for every request instead, as the PyPI client's `requests.post` makes one."""
 
-    def __init__(self, url: str, timeout: float = 600) -> None:
+    def __init__(self, url: str, timeout: float = 600, connection_per_request: bool = False) -> None:
         parts = urlsplit(url)
         self._connection = http.client.HTTPConnection(parts.hostname or "127.0.0.1", parts.port, timeout=timeout)
+        self._connection_per_request = connection_per_request
 
     def post(self, path: str, body: bytes, content_type: str) -> bytes:
         """POST `body`; the answer's body, or BenchError on a status of 400 or more."""
         self._connection.request("POST", path, body=body, headers={"Content-Type": content_type})
         response = self._connection.getresponse()
         answer = response.read()
+        if self._connection_per_request:
+            self._connection.close()  # the next request connects again
         if response.status >= 400:
             raise BenchError(f"POST {path} answered {response.status}: {answer[:300]!r}")
         return answer

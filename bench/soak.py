@@ -1,12 +1,15 @@
 """The soak: one robot that never stops logging, posted to as fast as the server answers, while an auditor reads.
 
     python -m bench.soak                       # 15 minutes, embedded store, 4 client threads
-    python -m bench.soak --store virtuoso      # the same against a Virtuoso this command starts
+    python -m bench.soak --store virtuoso      # against a Virtuoso this command starts, 2 API workers (as compose)
+    python -m bench.soak --server-log run.log  # keep the server's log (--server-log-level DEBUG: each views' batch)
     python -m bench.soak --minutes 2           # a shorter run
     python -m bench.soak --compare             # views off, then on, in one run: the ratios the targets name
 
 Every post is one visit to the same robot (bench/one_robot.py: about 56 triples, a new visitor each time), so
-the robot's node gains children with every post for the whole run. Meanwhile an auditor reads the
+the robot's node gains children with every post for the whole run; the clock starts once the server's views are
+built. With several API workers each post opens a connection of its own, as the PyPI client's `requests.post`
+does, so the kernel spreads them over the workers. Meanwhile an auditor reads the
 conversations, participants, emotion-timeline and ml-usage reports and the graph every 2 s, a probe reads
 `/healthz/ready` every 0.5 s (how far the views are behind, in entries and seconds), and the server's resident
 memory is sampled every 5 s. When the posting ends, the command waits for the views to catch up, checks that
@@ -54,6 +57,8 @@ VIEW_FILES = (
     "seen-terms.sqlite3",
 )
 TARGETS = {"posts/s": 200.0, "lag p99 s": 2.0, "caught up s": 5.0, "page p50 ms": 50.0, "page p95 ms": 150.0}
+# On Virtuoso (the compose default) the targets ask for fewer posts a second and allow the reports further behind.
+VIRTUOSO_TARGETS = {**TARGETS, "posts/s": 100.0, "lag p99 s": 5.0}
 
 
 @dataclass
@@ -92,6 +97,7 @@ class SoakFigures:
     minutes: float
     clients: int
     keep_views: bool
+    workers: int
     posting: Posting
     samples: Samples
     caught_up_seconds: float | None
@@ -103,16 +109,22 @@ class SoakFigures:
     def rate(self) -> float:
         return self.posting.acknowledged / self.posting.seconds if self.posting.seconds else 0.0
 
+    @property
+    def targets(self) -> dict[str, float]:
+        return VIRTUOSO_TARGETS if self.store == "virtuoso" else TARGETS
+
     def markdown(self) -> str:
         views = "" if self.keep_views else ", views off (KEEP_VIEWS=false)"
+        workers = f", {self.workers} API workers" if self.workers > 1 else ""
         lines = [
-            f"Soak: {self.store} store, one robot, {self.clients} client threads, {self.minutes:g} minutes{views} "
-            f"(`python -m bench.soak --store {self.store} --minutes {self.minutes:g}`).",
+            f"Soak: {self.store} store, one robot, {self.clients} client threads, {self.minutes:g} minutes{workers}"
+            f"{views} (`python -m bench.soak --store {self.store} --minutes {self.minutes:g} "
+            f"--workers {self.workers}`).",
             "",
             "| figure | measured | target |",
             "|---|--:|--:|",
             f"| posts acknowledged | {self.posting.acknowledged:,} ({self.rate:.0f} posts/s) | "
-            f"≥ {TARGETS['posts/s']:.0f} posts/s |",
+            f"≥ {self.targets['posts/s']:.0f} posts/s |",
         ]
         post = Latency.of(self.posting.latencies) if self.posting.latencies else None
         if post is not None:
@@ -120,10 +132,10 @@ class SoakFigures:
         lag = self.samples.lag_seconds or [0.0]
         lines += [
             f"| reports_lag during the run p50 / p99 / max s | {percentile(lag, 50):.2f} / {percentile(lag, 99):.2f} /"
-            f" {max(lag):.2f} | p99 ≤ {TARGETS['lag p99 s']:.0f} s |",
+            f" {max(lag):.2f} | p99 ≤ {self.targets['lag p99 s']:.0f} s |",
             f"| views caught up after the writes stopped | "
             f"{'never' if self.caught_up_seconds is None else f'{self.caught_up_seconds:.2f} s'} | "
-            f"≤ {TARGETS['caught up s']:.0f} s |",
+            f"≤ {self.targets['caught up s']:.0f} s |",
             f"| errors (posts / pages) | {len(self.posting.errors)} / {len(self.samples.page_failures)} | 0 |",
             f"| lost (triples acknowledged, not stored) | {max(0, self.expected_triples - self.stored_triples):,} of "
             f"{self.expected_triples:,} | 0 |",
@@ -131,7 +143,7 @@ class SoakFigures:
         for page, seconds in self.samples.pages.items():
             figures = Latency.of(seconds)
             lines.append(f"| auditor `{page}` p50 / p95 ms (n={figures.n}) | {figures.p50:.1f} / {figures.p95:.1f} | "
-                         f"≤ {TARGETS['page p50 ms']:.0f} / {TARGETS['page p95 ms']:.0f} |")  # fmt: skip
+                         f"≤ {self.targets['page p50 ms']:.0f} / {self.targets['page p95 ms']:.0f} |")  # fmt: skip
         lines += self._memory_lines()
         disk = self.disk_mib
         views = sum(size for name, size in disk.items() if name != "store")
@@ -160,12 +172,24 @@ class SoakFigures:
 
 
 def soak(
-    store: str, minutes: float, clients: int, auditor_interval: float, root: Path, keep_views: bool = True
+    store: str,
+    minutes: float,
+    clients: int,
+    auditor_interval: float,
+    root: Path,
+    keep_views: bool = True,
+    workers: int = 1,
+    log_level: str = "WARNING",
+    server_log: Path | None = None,
 ) -> SoakFigures:
     robot = one_robot()
-    with _server(store, root, keep_views) as (server, data_dir):
+    with _server(store, root, keep_views, workers, log_level) as (server, data_dir):
         with Client(server.url) as client:
             client.publish(robot.first)
+        # The run measures a server in its stride: every view built (the audit rules' SHACL check among them)
+        # before the clock starts, as after a deployment's first start.
+        if _caught_up(server.url, timeout=600) is None:
+            raise BenchError("the views were not built within 10 minutes of the start")
         posting, samples = Posting(), Samples()
         stop = threading.Event()
         started = time.monotonic()
@@ -177,7 +201,8 @@ def soak(
             ),
         ]
         posters = [
-            threading.Thread(target=_post, args=(server.url, robot, posting, stop), daemon=True) for _ in range(clients)
+            threading.Thread(target=_post, args=(server.url, robot, posting, stop, workers > 1), daemon=True)
+            for _ in range(clients)
         ]
         for thread in [*watchers, *posters]:
             thread.start()
@@ -192,7 +217,11 @@ def soak(
         stored = _stored_triples(server.url)
         expected = len(robot.first.splitlines()) + posting.acknowledged * len(robot.visit(0).splitlines())
         disk = _disk(data_dir)
-    return SoakFigures(store, minutes, clients, keep_views, posting, samples, caught_up, stored, expected, disk)
+        if server_log is not None:
+            server_log.write_text(server.log_text())
+    return SoakFigures(
+        store, minutes, clients, keep_views, workers, posting, samples, caught_up, stored, expected, disk
+    )
 
 
 def compared(off: SoakFigures, on: SoakFigures) -> str:
@@ -226,10 +255,12 @@ def _mib(value: float | None) -> str:
 
 
 @contextlib.contextmanager
-def _server(store: str, root: Path, keep_views: bool = True) -> Iterator[tuple[ServerProcess, Path]]:
+def _server(
+    store: str, root: Path, keep_views: bool, workers: int, log_level: str
+) -> Iterator[tuple[ServerProcess, Path]]:
     data_dir = root / "data"
     data_dir.mkdir()
-    env = {"LOGGING_LEVEL": "WARNING", "KEEP_VIEWS": "true" if keep_views else "false"}
+    env = {"LOGGING_LEVEL": log_level, "KEEP_VIEWS": "true" if keep_views else "false", "API_WORKERS": str(workers)}
     if store == "virtuoso":
         from tests.support.virtuoso import VirtuosoProcess
 
@@ -248,8 +279,10 @@ def _server(store: str, root: Path, keep_views: bool = True) -> Iterator[tuple[S
             yield server, data_dir
 
 
-def _post(url: str, robot: OneRobot, posting: Posting, stop: threading.Event) -> None:
-    with Client(url, timeout=120) as client:
+def _post(url: str, robot: OneRobot, posting: Posting, stop: threading.Event, connection_per_post: bool) -> None:
+    """Posts visits until stopped. With several API workers, a new connection for each post, as the PyPI client
+    makes: four kept-alive connections would all be served by whichever workers accepted them first."""
+    with Client(url, timeout=120, connection_per_request=connection_per_post) as client:
         while not stop.is_set():
             payload = robot.visit(posting.take())
             begin = time.perf_counter()
@@ -260,7 +293,7 @@ def _post(url: str, robot: OneRobot, posting: Posting, stop: threading.Event) ->
                     posting.errors.append(str(error)[:200])
                 time.sleep(0.1)
                 client.close()
-                client = Client(url, timeout=120)
+                client = Client(url, timeout=120, connection_per_request=connection_per_post)
                 continue
             with posting.lock:
                 posting.acknowledged += 1
@@ -319,7 +352,7 @@ def _caught_up(url: str, timeout: float = 1800) -> float | None:
     with httpx.Client(base_url=url, timeout=30) as client:
         while time.monotonic() - begin < timeout:
             body = client.get("/healthz/ready").json()
-            if "reports_lag" not in body and "apply_lag" not in body:
+            if not {"reports_lag", "apply_lag", "views_building"} & set(body):
                 return time.monotonic() - begin
             time.sleep(0.05)
     return None
@@ -348,13 +381,36 @@ def _size_mib(path: Path) -> float:
 
 
 def _rss_mib(pid: int | None) -> float | None:
-    status = Path(f"/proc/{pid}/status")
-    if pid is None or not status.exists():
+    """The server's resident memory: its process and, with several API workers, theirs (its children)."""
+    if pid is None:
         return None
-    for line in status.read_text().splitlines():
-        if line.startswith("VmRSS:"):
-            return int(line.split()[1]) / 1024
+    sizes = [_own_rss_mib(process) for process in (pid, *_children(pid))]
+    known = [size for size in sizes if size is not None]
+    return sum(known) if known else None
+
+
+def _own_rss_mib(pid: int) -> float | None:
+    with contextlib.suppress(OSError):
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024
     return None
+
+
+def _children(pid: int) -> list[int]:
+    """Every process under `pid` (uvicorn's supervisor starts the workers, multiprocessing a resource tracker)."""
+    parents: dict[int, int] = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        with contextlib.suppress(OSError, ValueError, IndexError):
+            # the command name (second field) may hold spaces: the parent is the second field after its ')'
+            parents[int(stat.parent.name)] = int(stat.read_text().rsplit(")", 1)[1].split()[1])
+    found, frontier = [], [pid]
+    while frontier:
+        parent = frontier.pop()
+        children = [child for child, of in parents.items() if of == parent]
+        found += children
+        frontier += children
+    return found
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -362,21 +418,36 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--store", choices=("oxigraph", "virtuoso"), default="oxigraph")
     parser.add_argument("--minutes", type=float, default=15.0)
     parser.add_argument("--clients", type=int, default=4)
+    parser.add_argument(
+        "--workers",
+        type=int,
+        help="API processes (API_WORKERS); by default 1 on the embedded store (it allows no other) and, as "
+        "docker-compose.yaml runs it, 2 on Virtuoso",
+    )
     parser.add_argument("--auditor-interval", type=float, default=2.0)
     parser.add_argument("--json", type=Path, help="also write the figures as JSON to this file")
+    parser.add_argument("--server-log", type=Path, help="keep the server's log (of the run with views on) in this file")
+    parser.add_argument(
+        "--server-log-level",
+        default="WARNING",
+        help="the server's LOGGING_LEVEL (DEBUG: each views' batch with its slowest views; it slows the server)",
+    )
     parser.add_argument("--compare", action="store_true", help="run with views off first, then on: the ratios")
     parser.add_argument("--views-off", action="store_true", help="only the run with the views off (KEEP_VIEWS=false)")
     args = parser.parse_args(argv)
+    workers = args.workers or (2 if args.store == "virtuoso" else 1)
     gc.disable()  # the bench's own collections would be counted in whichever request was in flight
     off = None
     if args.compare:
         with tempfile.TemporaryDirectory(prefix="segb-soak-") as root:
-            off = soak(args.store, args.minutes, args.clients, args.auditor_interval, Path(root), keep_views=False)
+            off = soak(args.store, args.minutes, args.clients, args.auditor_interval, Path(root), False, workers,
+                       args.server_log_level)  # fmt: skip
         print(off.markdown() + "\n")
     with tempfile.TemporaryDirectory(prefix="segb-soak-") as root:
         figures = soak(
-            args.store, args.minutes, args.clients, args.auditor_interval, Path(root), keep_views=not args.views_off
-        )
+            args.store, args.minutes, args.clients, args.auditor_interval, Path(root), not args.views_off, workers,
+            args.server_log_level, args.server_log,
+        )  # fmt: skip
     print(figures.markdown())
     if off is not None:
         print("\n" + compared(off, figures))

@@ -38,6 +38,7 @@ from segb_server.backend.services.upkeep.keeper import KeptView
 from segb_server.backend.services.upkeep.kept_queries.projection import KeptQueries
 from segb_server.backend.services.upkeep.kept_queries.rows import KeptRows
 from segb_server.backend.services.upkeep.seen_terms import SEEN_TERMS_FILE
+from segb_server.backend.services.writing.views_pace import ViewsPace
 from segb_server.backend.services.writing.write_path import WritePath
 from segb_server.backend.state.opening import open_state
 from segb_server.backend.store.base import Store
@@ -69,6 +70,7 @@ class Services:
     catalog: Catalog
     writes: WritePath  # journal → store → views, and which process does what
     ingest: IngestService
+    views_pace: ViewsPace  # how long a post's answer waits for the views
     reports: ReportService
     findings: FindingsService
     timeline: TimelineService
@@ -189,6 +191,7 @@ def build_services(
             apply_timeout=settings.ingest_apply_timeout_seconds,
             max_backlog=settings.journal_max_backlog,
         ),
+        views_pace=ViewsPace(writes, settings.views_max_lag_seconds, settings.views_max_hold_seconds),
         reports=ReportService(catalog, store, cache, kept_reports, lag=writes.lag),
         findings=findings,
         timeline=TimelineService([*timeline, FindingSource(findings)], kept_timeline.rows.last_change),

@@ -32,6 +32,24 @@ def test_a_short_soak_compares_views_off_and_on_and_loses_nothing() -> None:
     assert re.search(r"\| RSS at [\d,]+ posts MiB \| (\d+|not reached) \| \d+ \| [\d.]+ \| ≤ 1\.2 \|", out), out
 
 
+@pytest.mark.virtuoso
+def test_a_short_soak_on_virtuoso_runs_the_compose_default_of_two_workers_and_loses_nothing(tmp_path: Path) -> None:
+    log = tmp_path / "server.log"
+    run = subprocess.run(
+        [sys.executable, "-m", "bench.soak", "--store", "virtuoso", "--minutes", "0.1", "--clients", "2",
+         "--server-log", str(log), "--server-log-level", "INFO"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr[-3000:]
+    out = run.stdout
+    assert "2 API workers" in out and "≥ 100 posts/s" in out and "p99 ≤ 5 s" in out, out
+    assert re.search(r"\| lost \(triples acknowledged, not stored\) \| 0 of [\d,]+ \| 0 \|", out), out
+    assert "SEGB API ready (store=virtuoso" in log.read_text()  # the server's own log was kept
+
+
 def test_memory_at_a_number_of_posts_is_read_between_the_samples_around_it() -> None:
     from bench.soak import rss_when
 

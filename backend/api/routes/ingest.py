@@ -54,7 +54,9 @@ _RDF_BODY = {
         "Stores a robot's log. The body is the JSON `SEGBPublisher` sends (`ttl_content`, `user`), or raw "
         "`text/turtle` / `application/n-triples` (claimed user in `?user=`); `Content-Encoding: gzip` is "
         "accepted. The post is recorded in the journal with its receipt first; a 201 means it is durable there "
-        "and, with `INGEST_ACK=store` (the embedded store's default), applied to the store too. Re-publishing is "
+        "and, with `INGEST_ACK=store` (the embedded store's default), applied to the store too. While the "
+        "reports are more than `VIEWS_MAX_LAG_SECONDS` behind, the answer waits for them (up to "
+        "`VIEWS_MAX_HOLD_SECONDS`), so robots post at the pace the reports keep. Re-publishing is "
         "idempotent: only triples the journal lacks are recorded and written, and blank nodes are skolemised "
         "deterministically. A token with write scopes may only describe subjects under them (403 naming the "
         "first other one). Errors: 400 malformed RDF (with line and column) or RDF 1.2 triple terms, 403 out "
@@ -89,6 +91,7 @@ async def publish(
         return result, payload.claimed_user
 
     result, claimed = await run_in_threadpool(work)
+    await services.views_pace.hold()  # kept already; robots wait for this answer before their next post
     # For the request's log line, which is the one line an ingest writes at INFO.
     request.state.triples_written, request.state.log_id = result.triples_new, result.log_id
     return IngestResponse(

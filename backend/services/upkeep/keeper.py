@@ -214,6 +214,10 @@ class ViewKeeper:
             return []
         return [view.name for view in self.views if not view.ready]
 
+    def behind(self, applied: int) -> int:
+        """Journal entries the store has through `applied` and the views do not (0 before they are ready)."""
+        return self._behind(applied, self.through)
+
     def _behind(self, applied: int, through: int) -> int:
         if not any(view.ready for view in self.views):
             return 0
@@ -412,11 +416,14 @@ class ViewKeeper:
         """Apply what the store received while this server was not keeping the view current."""
         if stored >= current:
             return
+        started = time.perf_counter()
         entries = self.journal.entries_after(stored, current - stored)
         if any(entry.action != "ingest" for entry in entries):  # a clearing or an erasure
             self._build(view, current)
             return
         view.update(Delta.of(quads_of(entries)), current)
+        logger.info("view %s caught up from entry %d to %d in %.1f s", view.name, stored, current,
+                    time.perf_counter() - started)  # fmt: skip
 
     def _process(self, items: list[Applied | _Unread]) -> None:
         steps = [step for step in self._read_unread(items) if step.entries[-1].sequence > self.through]
@@ -442,11 +449,16 @@ class ViewKeeper:
         if self.seen_terms is not None and steps:  # registered before any view reads the batch
             fresh = self.seen_terms.admit(quads, steps[0].entries[0].sequence, through)
         delta = Delta.of(quads, fresh)  # matched by every view
-        updates = [self._workers.submit(view.update, delta, through) for view in self.views]
+        began = time.perf_counter()
+        updates = [self._workers.submit(_timed, view.update, delta, through) for view in self.views]
         for update in updates:  # every one finishes before an error is raised: a retry starts from a quiet state
             update.exception()
-        for update in updates:
-            update.result()
+        seconds = {view.name: update.result() for view, update in zip(self.views, updates, strict=True)}
+        if logger.isEnabledFor(logging.DEBUG):
+            slowest = sorted(seconds.items(), key=lambda item: -item[1])[:3]
+            logger.debug("views through entry %d: %d steps, %d triples in %.3f s (slowest: %s)", through, len(steps),
+                         len(quads), time.perf_counter() - began,
+                         ", ".join(f"{name} {took:.3f} s" for name, took in slowest))  # fmt: skip
         self._advance(through)
 
     def _rebuild_all(self, erased_at: int) -> int:
@@ -469,3 +481,10 @@ class ViewKeeper:
 
     def _advance(self, through: int) -> None:
         self.cursor.advance(through)
+
+
+def _timed(update: Callable[[Delta, int], None], delta: Delta, through: int) -> float:
+    """`update(delta, through)`, and the seconds it took."""
+    began = time.perf_counter()
+    update(delta, through)
+    return time.perf_counter() - began

@@ -133,6 +133,18 @@ class WritePath:
         views_entries, views_seconds = self.keeper.lag(self.applier.applied)
         return Lag(apply_entries, apply_seconds, views_entries, views_seconds)
 
+    def views_behind(self) -> int:
+        """Entries the store has and the views do not (read in memory; 0 before the views are first ready)."""
+        return self.keeper.behind(self.applier.applied)
+
+    def views_lag_seconds(self) -> float:
+        """How long the oldest entry the views miss has waited (reads the journal; 0 when they miss none)."""
+        return self.keeper.lag(self.applier.applied)[1]
+
+    def views_failing(self) -> bool:
+        """The views' keeper is retrying an error (a store away, a view's storage failing)."""
+        return self.keeper.last_error is not None
+
     def building_views(self) -> list[str]:
         """The views being built while the store holds entries they miss (see `ViewKeeper.building`)."""
         return self.keeper.building(self.applier.applied)
