@@ -197,7 +197,9 @@ def soak(
             threading.Thread(target=_audit, args=(server.url, samples, stop, auditor_interval), daemon=True),
             threading.Thread(target=_probe, args=(server.url, samples, stop), daemon=True),
             threading.Thread(
-                target=_sample_memory, args=(server, data_dir, samples, stop, started, posting), daemon=True
+                target=_sample_memory,
+                args=(server, _store_files(store, data_dir), samples, stop, started, posting),
+                daemon=True,
             ),
         ]
         posters = [
@@ -216,7 +218,7 @@ def soak(
             thread.join()
         stored = _stored_triples(server.url)
         expected = len(robot.first.splitlines()) + posting.acknowledged * len(robot.visit(0).splitlines())
-        disk = _disk(data_dir)
+        disk = _disk(store, data_dir)
         if server_log is not None:
             server_log.write_text(server.log_text())
     return SoakFigures(
@@ -326,7 +328,7 @@ def _probe(url: str, samples: Samples, stop: threading.Event) -> None:
 
 
 def _sample_memory(
-    server: ServerProcess, data_dir: Path, samples: Samples, stop: threading.Event, t0: float, posting: Posting
+    server: ServerProcess, store_files: Path, samples: Samples, stop: threading.Event, t0: float, posting: Posting
 ) -> None:
     while not stop.is_set():
         rss = _rss_mib(server.pid)
@@ -334,7 +336,7 @@ def _sample_memory(
         if rss is not None:
             samples.rss_mib.append((now, rss))
             samples.rss_by_posts.append((posting.acknowledged, rss))
-        samples.store_mib.append((now, _size_mib(data_dir / "oxigraph")))
+        samples.store_mib.append((now, _size_mib(store_files)))
         stop.wait(5)
 
 
@@ -365,8 +367,14 @@ def _stored_triples(url: str) -> int:
     return int(answer.json()["results"]["bindings"][0]["n"]["value"])
 
 
-def _disk(data_dir: Path) -> dict[str, float]:
-    sizes = {"store": _size_mib(data_dir / "oxigraph")}
+def _store_files(store: str, data_dir: Path) -> Path:
+    """Where the store keeps its data: the embedded store's folder, or the Virtuoso's (its database and
+    transaction log, beside the server's data directory: `_server`)."""
+    return data_dir.parent / "virtuoso" if store == "virtuoso" else data_dir / "oxigraph"
+
+
+def _disk(store: str, data_dir: Path) -> dict[str, float]:
+    sizes = {"store": _size_mib(_store_files(store, data_dir))}
     for name in VIEW_FILES:
         sizes[name] = sum(_size_mib(data_dir / f"{name}{suffix}") for suffix in ("", "-wal"))
     return sizes

@@ -82,24 +82,23 @@ def test_while_the_reports_are_too_far_behind_an_answer_waits_for_them(tmp_path:
         assert int(count) == 5  # every post kept
 
 
-def test_an_answer_waits_no_longer_than_the_longest_hold(tmp_path: Path) -> None:
-    with served(tmp_path, max_lag=0.2, max_hold=1.0) as server:
+def answer_seconds_while_behind(data_dir: Path, max_lag: float, max_hold: float) -> float:
+    """With the reports stalled and a post they miss a second old: how long the next post took to be answered
+    (a 201 either way)."""
+    with served(data_dir, max_lag, max_hold) as server:
         ready_and_current(server.url)
-        with reports_locked(tmp_path):
-            assert post(server.url, 1)[0] == 201
-            time.sleep(0.5)
-            began = time.monotonic()
-            status, at = post(server.url, 2)  # still locked: held for the longest hold, then answered
-            assert status == 201
-            assert 1.0 <= at - began < 5
-
-
-def test_with_no_bound_an_answer_never_waits_for_the_reports(tmp_path: Path) -> None:
-    with served(tmp_path, max_lag=0, max_hold=30) as server:
-        ready_and_current(server.url)
-        with reports_locked(tmp_path):
+        with reports_locked(data_dir):
             assert post(server.url, 1)[0] == 201
             time.sleep(1.0)
             began = time.monotonic()
             status, at = post(server.url, 2)
-            assert status == 201 and at - began < 1.0
+            assert status == 201
+            return at - began
+
+
+def test_an_answer_waits_no_longer_than_the_longest_hold(tmp_path: Path) -> None:
+    assert 1.0 <= answer_seconds_while_behind(tmp_path, max_lag=0.2, max_hold=1.0) < 5  # still stalled: answered
+
+
+def test_with_no_bound_an_answer_never_waits_for_the_reports(tmp_path: Path) -> None:
+    assert answer_seconds_while_behind(tmp_path, max_lag=0, max_hold=30) < 1.0
