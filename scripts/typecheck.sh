@@ -8,5 +8,6 @@ trap 'rm -rf "$view"' EXIT
 mkdir "$view/segb_server"
 for folder in backend ui examples; do ln -s "$root/$folder" "$view/segb_server/$folder"; done
 cd "$view"
-exec python3 -m mypy --config-file "$root/pyproject.toml" --cache-dir "$view/.mypy_cache" \
+# Not `exec`: the shell must outlive mypy for its trap to remove the view.
+python3 -m mypy --config-file "$root/pyproject.toml" --cache-dir "$view/.mypy_cache" \
   -p segb_server.backend -p segb_server.ui -p segb_server.examples "$@"
