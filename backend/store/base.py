@@ -10,7 +10,6 @@ from typing import Protocol
 from pyoxigraph import BlankNode, Literal, NamedNode, Quad, QueryBoolean, QuerySolutions, Triple
 
 from segb_server.backend.store.solutions import read_whole
-from segb_server.backend.store.sparql_text import code_only
 
 Term = NamedNode | BlankNode | Literal
 Bindings = Mapping[str, Term | None]
@@ -124,7 +123,7 @@ def rows_of(sparql: str, solutions: QuerySolutions) -> SelectResult:
     columns, answer = read_whole(solutions)
     rows = []
     seen: set[tuple[object, ...]] = set()
-    distinct = _DISTINCT.match(code_only(_head(sparql))) is not None
+    distinct = is_distinct(sparql)
     for values in answer:
         if distinct:
             if values in seen:
@@ -134,12 +133,14 @@ def rows_of(sparql: str, solutions: QuerySolutions) -> SelectResult:
     return SelectResult(columns=columns, rows=rows)  # type: ignore[arg-type]
 
 
-def _head(sparql: str) -> str:
-    """The text before the query's first `{`, where its form is written (the whole text when a string or a
-    comment may hold that `{`): the rest is often long VALUES blocks, costly to blank out on every answer."""
-    head = sparql.partition("{")[0]
-    return sparql if any(mark in head for mark in "#\"'") else head
+# The query's prologue: blanks, comments, and PREFIX and BASE declarations (an IRI there may hold a `#`).
+_PROLOGUE = re.compile(r"(?:\s|#[^\n\r]*|PREFIX\s+[^\s:]*:\s*<[^>]*>|BASE\s+<[^>]*>)*", re.IGNORECASE)
+_SELECT_DISTINCT = re.compile(r"SELECT\s+DISTINCT\b", re.IGNORECASE)
 
 
-# The query's own SELECT (after its prologue) is DISTINCT: a subquery's DISTINCT says nothing of the answer.
-_DISTINCT = re.compile(r"\s*(?:(?:PREFIX\s+[^\s:]*:\s*<[^>]*>|BASE\s+<[^>]*>)\s*)*SELECT\s+DISTINCT\b", re.IGNORECASE)
+def is_distinct(sparql: str) -> bool:
+    """Whether the query's own SELECT (after its prologue) is DISTINCT: a subquery's DISTINCT says nothing of the
+    answer. Read from the head alone: the rest of a kept view's query is often a VALUES block of hundreds of keys,
+    whose strings and IRIs, blanked on every answer, cost more than reading the answer."""
+    prologue = _PROLOGUE.match(sparql)
+    return _SELECT_DISTINCT.match(sparql, prologue.end() if prologue else 0) is not None

@@ -191,3 +191,18 @@ def test_lines_that_are_not_log_entries_are_skipped(file_server: InProcess, tmp_
     assert answer.status_code == 200, answer.text
     assert "before-damage" in [entry["request_id"] for entry in answer.json()["entries"]]
     assert all(isinstance(entry["time"], str) for entry in answer.json()["entries"])
+
+
+def test_a_record_logged_after_the_log_closed_is_dropped_quietly(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # A background thread of a server that is stopping may still log; the file's lock is closed by then.
+    from segb_server.backend.services.ops.server_log import ServerLog
+
+    log = ServerLog(tmp_path / "server.jsonl")
+    log.handler.handle(logging.LogRecord("segb.views", logging.INFO, __file__, 1, "kept", None, None))
+    log.handler.close()
+    log.handler.handle(logging.LogRecord("segb.views", logging.INFO, __file__, 1, "late", None, None))
+    assert "Logging error" not in capsys.readouterr().err
+    lines = (tmp_path / "server.jsonl").read_text().splitlines()
+    assert [json.loads(line)["message"] for line in lines] == ["kept"]

@@ -164,3 +164,52 @@ def asked_side_by_side(delta: Delta) -> list[tuple[int, int]]:
     for thread in threads:
         thread.join()
     return counts
+
+
+def test_views_following_the_same_join_in_one_batch_share_its_answer(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    # The reports and the timeline's kinds follow many of the same chains: a batch works each out once.
+    runs: list[tuple[str, ...]] = []
+    original = DeltaJoin._run
+
+    def counted(self: DeltaJoin, delta: Delta, values: list[str]) -> object:
+        runs.append(tuple(values))
+        return original(self, delta, values)
+
+    monkeypatch.setattr(DeltaJoin, "_run", counted)
+    step = [Pattern("?a", frozenset({PREDICATES[0]}), "?b", 0)]
+    report, timeline = DeltaJoin(step, ["?a"], ["?b"]), DeltaJoin(list(step), ["?a"], ["?b"])
+    other = DeltaJoin([Pattern("?a", frozenset({PREDICATES[1]}), "?b", 0)], ["?a"], ["?b"])
+    quads = as_quads([(NODES[0], PREDICATES[0], NODES[1]), (NODES[0], PREDICATES[1], NODES[2])])
+    delta = Delta(quads, frozenset({NODES[0]}))
+    assert report.shape == timeline.shape != other.shape
+    assert report.run(delta, [NODES[0]]) == timeline.run(delta, [NODES[0]]) == [(NODES[1],)]
+    assert other.run(delta, [NODES[0]]) == [(NODES[2],)]  # another join: its own answer
+    assert len(runs) == 2
+    assert timeline.run(Delta(quads, frozenset({NODES[0]})), [NODES[0]]) == [(NODES[1],)]  # the next batch asks again
+    assert len(runs) == 3
+
+
+def test_joins_compiled_side_by_side_never_draw_the_same_number() -> None:
+    # Views are planned in several threads at once: two distinct joins sharing a number would share answers.
+    numbers: dict[int, list[int]] = {}
+    together = threading.Barrier(8)
+    interval = sys.getswitchinterval()
+    sys.setswitchinterval(1e-6)
+
+    def compile_joins(thread: int) -> None:
+        together.wait()
+        numbers[thread] = [
+            DeltaJoin([Pattern("?a", frozenset({f"{EX}race{thread}-{index}"}), "?b", 0)], ["?a"], ["?b"]).shape
+            for index in range(200)
+        ]
+
+    try:
+        threads = [threading.Thread(target=compile_joins, args=(thread,)) for thread in range(8)]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join()
+    finally:
+        sys.setswitchinterval(interval)
+    drawn = [number for listed in numbers.values() for number in listed]
+    assert len(drawn) == 1600 and len(set(drawn)) == 1600

@@ -29,3 +29,13 @@ def test_a_distinct_select_drops_repeated_solutions_and_keeps_the_order() -> Non
 def test_a_plain_select_keeps_every_solution() -> None:
     text = "SELECT ?emotion ?name WHERE { { SELECT DISTINCT ?emotion ?name WHERE { ?emotion ?p ?name } } }"
     assert len(emotions(text)) == 4
+
+
+def test_distinct_is_read_from_the_query_itself_never_from_its_comments_or_prefixes() -> None:
+    header = "# title: Emotions\n# description: SELECT DISTINCT would be wrong here { really }\n"
+    prefixes = "PREFIX rdfs: <http://www.w3.org/2000/01/rdf-schema#>\nPREFIX e: <https://e.org/>\n"
+    assert len(emotions(header + prefixes + "SELECT ?emotion ?name WHERE { ?emotion e:p ?name }")) == 4
+    keys = " ".join(f"<https://e.org/emotion_{index}>" for index in range(5000))  # a kept view's keys
+    where = f"{{ VALUES ?emotion {{ {keys} }} ?emotion e:p ?name }}"
+    kept = f"{header}{prefixes}select  distinct ?emotion ?name WHERE {where}"
+    assert emotions(kept) == ["https://e.org/emotion_1", "https://e.org/emotion_2"]

@@ -76,8 +76,11 @@ class _JsonLines(logging.Handler):
         self.backups = backups
         self.writers = FileLock(path.with_name(f"{path.name}.lock"))
         self._stream: BinaryIO | None = None
+        self._closed = False
 
     def emit(self, record: logging.LogRecord) -> None:
+        if self._closed:  # a thread of the server still winding down: the log's file is no longer this handler's
+            return
         try:
             data = (line_of(entry_of(record)) + "\n").encode("utf-8")
             with self.writers.held():
@@ -112,8 +115,9 @@ class _JsonLines(logging.Handler):
         self.path.replace(self.path.with_name(f"{self.path.name}.1"))
 
     def close(self) -> None:
-        self.acquire()
+        self.acquire()  # `handle` holds it around `emit`: a record is written whole or not at all
         try:
+            self._closed = True
             if self._stream is not None:
                 self._stream.close()
                 self._stream = None

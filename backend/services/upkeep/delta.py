@@ -52,6 +52,7 @@ class Delta:
         self._by_predicate: dict[str, list[Fact]] = {}  # made on the first ask for a predicate
         self._by_object: dict[str, dict[str, list[Fact]]] = {}  # predicate → object text → facts
         self._by_subject: dict[str, dict[str, list[Fact]]] = {}  # predicate → subject text → facts
+        self.joins: dict[tuple[int, tuple[str, ...]], object] = {}  # a join's number and start → its answer
         self._answers: dict[str, object] = {}  # query text → the store's answer, for this batch
         self._answers_lock = threading.Lock()  # views of a remote store ask side by side
 

@@ -31,7 +31,7 @@ import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Protocol, runtime_checkable
 
 from pyoxigraph import Quad
@@ -106,6 +106,17 @@ class ForgetsErased(Protocol):
 
 
 @dataclass
+class ViewTime:
+    """What keeping one view current has cost this process so far: the CPU seconds of its updates (their worker
+    thread's own, so the other views' and the requests' work is not counted), their wall seconds, and the
+    batches they took (`python -m bench.views_cpu` reads it; the log says it per batch at DEBUG)."""
+
+    cpu: float = 0.0
+    wall: float = 0.0
+    batches: int = 0
+
+
+@dataclass
 class _Marker:
     done: threading.Event
 
@@ -158,6 +169,7 @@ class ViewKeeper:
         self._stopping = threading.Event()  # ends retry waits too: a store that never returns must not hold shutdown
         self.last_error: str | None = None
         self.cursor = Cursor()  # the journal entry every view is current through
+        self._spent = {view.name: ViewTime() for view in views}  # written by the keeper's thread only
         workers = max(1, len(views)) if store.remote else EMBEDDED_VIEW_WORKERS
         self._workers = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="segb-view")
 
@@ -193,6 +205,10 @@ class ViewKeeper:
     def wait_for(self, sequence: int, timeout: float) -> bool:
         """Wait until the views include journal entry `sequence` (True), or `timeout` seconds passed."""
         return self.cursor.wait_for(sequence, timeout, reached=lambda: all(p.ready for p in self.views))
+
+    def view_times(self) -> dict[str, ViewTime]:
+        """Each view's updates so far (a copy)."""
+        return {name: replace(spent) for name, spent in self._spent.items()}
 
     @property
     def through(self) -> int:
@@ -453,7 +469,12 @@ class ViewKeeper:
         updates = [self._workers.submit(_timed, view.update, delta, through) for view in self.views]
         for update in updates:  # every one finishes before an error is raised: a retry starts from a quiet state
             update.exception()
-        seconds = {view.name: update.result() for view, update in zip(self.views, updates, strict=True)}
+        seconds: dict[str, float] = {}
+        for view, update in zip(self.views, updates, strict=True):
+            wall, cpu = update.result()
+            seconds[view.name] = wall
+            spent = self._spent[view.name]
+            spent.cpu, spent.wall, spent.batches = spent.cpu + cpu, spent.wall + wall, spent.batches + 1
         if logger.isEnabledFor(logging.DEBUG):
             slowest = sorted(seconds.items(), key=lambda item: -item[1])[:3]
             logger.debug("views through entry %d: %d steps, %d triples in %.3f s (slowest: %s)", through, len(steps),
@@ -483,8 +504,8 @@ class ViewKeeper:
         self.cursor.advance(through)
 
 
-def _timed(update: Callable[[Delta, int], None], delta: Delta, through: int) -> float:
-    """`update(delta, through)`, and the seconds it took."""
-    began = time.perf_counter()
+def _timed(update: Callable[[Delta, int], None], delta: Delta, through: int) -> tuple[float, float]:
+    """`update(delta, through)`, and the seconds it took: on the clock, and of its thread's CPU."""
+    began, cpu = time.perf_counter(), time.thread_time()
     update(delta, through)
-    return time.perf_counter() - began
+    return time.perf_counter() - began, time.thread_time() - cpu

@@ -12,6 +12,12 @@ views kept this way with full evaluations, on both stores.
 A join's order is fixed when the query is planned (`DeltaJoin`): which variables are bound where does not
 depend on the values, so a batch only runs the steps.
 
+Views of one batch follow many of the same joins (the reports and the timeline's kinds share their chains from
+an activity to its message, from a message to its human; measured on one robot's posts, more than half of a
+batch's joins): a compiled join's steps get a number (`_shape_of`, one number per distinct compiled join,
+handed out under a lock), and the batch keeps each answer by number and start (`Delta.joins`), for the batch
+only. Two joins with the same number run the same steps from the same start: they have the same answer.
+
 A `relaxed` join answers a weaker question, whether a key the batch introduced can have any row at all: the
 steps it cannot take among the batch's triples are left out, and fewer patterns only allow more solutions. No
 solution then means the query has none for that key, whose evaluation the view skips.
@@ -19,6 +25,7 @@ solution then means the query has none for that key, whose evaluation the view s
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -35,6 +42,16 @@ class Alias:
 
 
 Step = Pattern | Alias
+
+_SHAPES: dict[tuple[object, ...], int] = {}  # a compiled join's steps and ends → its number
+_SHAPES_LOCK = threading.Lock()  # views are planned side by side: no two distinct joins may draw one number
+_UNKNOWN = object()
+
+
+def _shape_of(signature: tuple[object, ...]) -> int:
+    """The number of the compiled join `signature` describes: the same for equal signatures, distinct otherwise."""
+    with _SHAPES_LOCK:
+        return _SHAPES.setdefault(signature, len(_SHAPES))
 
 
 @dataclass(frozen=True)
@@ -107,6 +124,8 @@ class DeltaJoin:
         self._out = [slots.get(variable, -1) for variable in out]
         if -1 in self._out:
             self.usable = False
+        signature = (tuple(self._ops), tuple(self._out), tuple(self._start_allowed), self._width, relaxed, self.usable)
+        self.shape = _shape_of(signature)
 
     def run(self, delta: Delta, values: Sequence[str]) -> list[tuple[str, ...]] | None:
         """The `out` terms of each solution extending `values` (the texts of `start`), found among the delta's
@@ -114,6 +133,15 @@ class DeltaJoin:
         about it), or the join cannot be followed here at all."""
         if not self.usable or not delta.fresh:
             return None
+        key = (self.shape, tuple(values))
+        known = delta.joins.get(key, _UNKNOWN)
+        if known is not _UNKNOWN:
+            return known  # type: ignore[return-value]
+        found = self._run(delta, values)
+        delta.joins[key] = found  # views asking side by side may both work it out: the same answer
+        return found
+
+    def _run(self, delta: Delta, values: Sequence[str]) -> list[tuple[str, ...]] | None:
         for value, allowed in zip(values, self._start_allowed, strict=True):
             if allowed is not None and value not in allowed:
                 return []

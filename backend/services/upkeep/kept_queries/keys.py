@@ -137,6 +137,14 @@ class _Chain:
     target: str
 
     @cached_property
+    def _hash(self) -> int:
+        return hash((self.links, self.names, self.target))
+
+    def __hash__(self) -> int:
+        # Each batch gathers its VALUES rows by chain: the fields' hash, made once (a chain's steps are many).
+        return self._hash
+
+    @cached_property
     def join(self) -> DeltaJoin:
         """The chain as followed among a batch's triples."""
         return DeltaJoin(self.links, self.names, [self.target])
