@@ -32,7 +32,7 @@ from pyoxigraph import RdfFormat
 from bench.measure import machine
 from bench.one_robot import OneRobot, one_robot
 from segb_server.backend.config import Settings
-from segb_server.backend.services.container import build_services
+from segb_server.backend.services.container import Services, build_services
 from segb_server.backend.services.ingest.payloads import RdfPayload
 from segb_server.backend.store.factory import open_store
 
@@ -95,10 +95,9 @@ def run_round(robot: OneRobot, posts: int, views: bool, root: Path) -> Round:
     )
 
 
-def _post(services: object, payload: str) -> int:
-    ingest = services.ingest  # type: ignore[attr-defined]
-    result = ingest.ingest(RdfPayload(payload.encode(), RdfFormat.N_TRIPLES, claimed_user=None), actor="bench")
-    return int(result.sequence)
+def _post(services: Services, payload: str) -> int:
+    result = services.ingest.ingest(RdfPayload(payload.encode(), RdfFormat.N_TRIPLES, claimed_user=None), actor="bench")
+    return result.sequence
 
 
 def markdown(rounds: list[Round], command: str) -> str:
