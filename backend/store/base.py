@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import re
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
 from pyoxigraph import BlankNode, Literal, NamedNode, Quad, QueryBoolean, QuerySolutions, Triple
 
+from segb_server.backend.store.query_form import is_distinct
 from segb_server.backend.store.solutions import read_whole
 
 Term = NamedNode | BlankNode | Literal
@@ -131,16 +131,3 @@ def rows_of(sparql: str, solutions: QuerySolutions) -> SelectResult:
             seen.add(values)
         rows.append({name: value for name, value in zip(columns, values, strict=True) if value is not None})
     return SelectResult(columns=columns, rows=rows)  # type: ignore[arg-type]
-
-
-# The query's prologue: blanks, comments, and PREFIX and BASE declarations (an IRI there may hold a `#`).
-_PROLOGUE = re.compile(r"(?:\s|#[^\n\r]*|PREFIX\s+[^\s:]*:\s*<[^>]*>|BASE\s+<[^>]*>)*", re.IGNORECASE)
-_SELECT_DISTINCT = re.compile(r"SELECT\s+DISTINCT\b", re.IGNORECASE)
-
-
-def is_distinct(sparql: str) -> bool:
-    """Whether the query's own SELECT (after its prologue) is DISTINCT: a subquery's DISTINCT says nothing of the
-    answer. Read from the head alone: the rest of a kept view's query is often a VALUES block of hundreds of keys,
-    whose strings and IRIs, blanked on every answer, cost more than reading the answer."""
-    prologue = _PROLOGUE.match(sparql)
-    return _SELECT_DISTINCT.match(sparql, prologue.end() if prologue else 0) is not None

@@ -13,6 +13,12 @@ _PROLOGUE = re.compile(
     re.IGNORECASE,
 )
 _FORM = re.compile(r"(SELECT|CONSTRUCT|ASK|DESCRIBE)\b", re.IGNORECASE)
+_SELECT_DISTINCT = re.compile(r"SELECT\s+DISTINCT\b", re.IGNORECASE)
+
+
+def _after_prologue(sparql: str) -> int:
+    found = _PROLOGUE.match(sparql)
+    return found.end() if found else 0
 
 
 def query_form(sparql: str) -> QueryForm | None:
@@ -20,7 +26,12 @@ def query_form(sparql: str) -> QueryForm | None:
 
     Remote stores pick a result format from the Accept header, so the form has to be known before sending.
     """
-    prologue_end = _PROLOGUE.match(sparql)
-    start = prologue_end.end() if prologue_end else 0
-    form = _FORM.match(sparql, start)
+    form = _FORM.match(sparql, _after_prologue(sparql))
     return cast(QueryForm, form.group(1).lower()) if form else None
+
+
+def is_distinct(sparql: str) -> bool:
+    """Whether the query's own SELECT (after its prologue) is DISTINCT: a subquery's DISTINCT says nothing of the
+    answer. Read from the head alone: the rest of a kept view's query is often a VALUES block of hundreds of keys,
+    whose strings and IRIs, blanked on every answer, cost more than reading the answer."""
+    return _SELECT_DISTINCT.match(sparql, _after_prologue(sparql)) is not None
