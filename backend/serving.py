@@ -38,6 +38,11 @@ SHARED_STORES = ("virtuoso", "sparql")
 # Live event streams never end by themselves: on shutdown they are closed after this long instead of holding
 # the exit. A post cut so keeps nothing: its journal transaction never committed.
 GRACEFUL_SHUTDOWN_SECONDS = 5
+# uvicorn's supervisor kills a worker that has not answered its ping for this long, and with it every request
+# the worker holds (their clients see their connection reset). Its default, 5 s, kills healthy workers on a
+# loaded machine, where a busy worker's ping thread may wait that long for the interpreter; a worker that is
+# really hung is still replaced, a minute later.
+WORKER_HEALTHCHECK_SECONDS = 60
 
 
 def configure_logging(settings: Settings) -> None:
@@ -181,7 +186,14 @@ def serve_api_workers(settings: Settings, *, with_ui: bool, listening: Callable[
         ui.start()
     try:
         workers = settings.api_workers
-        uvicorn.run(APP_FACTORY, factory=True, workers=workers, port=settings.api_port, **_options(settings))
+        uvicorn.run(
+            APP_FACTORY,
+            factory=True,
+            workers=workers,
+            port=settings.api_port,
+            timeout_worker_healthcheck=WORKER_HEALTHCHECK_SECONDS,
+            **_options(settings),
+        )
     finally:
         if ui is not None:
             ui.terminate()

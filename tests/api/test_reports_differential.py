@@ -21,7 +21,7 @@ from segb_server.backend.services.values import json_value
 from segb_server.backend.store.oxigraph import OxigraphStore
 from segb_server.backend.store.terms import bind_values
 from tests.conftest import make_settings
-from tests.support.histories import EX, HUMANS, ROBOTS, History, send
+from tests.support.histories import EX, HUMANS, ROBOTS, History, iri, send, term, time_literal
 from tests.support.in_process import InProcess, Server, http
 from tests.support.settle import settle
 
@@ -111,6 +111,34 @@ def test_reports_of_one_robot_with_a_long_history_equal_their_full_evaluation(st
         conversations = served_equal_evaluated(server, variants, step, page=50)
         if step == 0:
             assert len(conversations) >= 240  # the long history is there
+
+
+def test_filtered_pages_of_rows_at_the_same_time_keep_the_whole_order(store_server: str) -> None:
+    """A filtered page is chosen by the first values of its rows' order (a message's robot, person and time)
+    and then put in the whole order: messages at three instants, each kept in a batch of its own in the reverse
+    of their IRIs' order (so the rows' numbers do not follow it), read in pages as small as one row with a
+    person, a window and both, equal the query's rows and order (ties at an instant broken by the IRIs)."""
+    base = [f"{iri('robot', 'ari')} {term('rdf:type')} {term('oro:Robot')} ."]
+    base += [f"{iri('human', human)} {term('rdf:type')} {term('oro:Human')} ." for human in ("maria", "juan")]
+    send(store_server, base)
+    for number in reversed(range(15)):
+        message, activity = iri("message", f"m{number:02d}"), iri("activity", f"a{number:02d}")
+        send(store_server, [
+            f"{message} {term('rdf:type')} {term('schema:Message')} .",
+            f'{message} {term("schema:text")} "message {number}"@en .',
+            f"{message} {term('prov:wasGeneratedBy')} {activity} .",
+            f"{message} {term('schema:sender')} {iri('human', ('maria', 'juan')[number % 2])} .",
+            f"{activity} {term('segb:wasPerformedBy')} {iri('robot', 'ari')} .",
+            f"{activity} {term('prov:startedAtTime')} {time_literal(60 * (number % 3))} .",
+        ])  # fmt: skip
+        settle(store_server)
+    variants = [
+        {"human": f"{EX}human/maria"},
+        {"since": "2026-03-10T09:01:00Z", "until": "2026-03-10T09:02:00Z"},
+        {"human": f"{EX}human/juan", "since": "2026-03-10T09:00:00Z", "until": "2026-03-10T09:01:00Z"},
+    ]
+    for page in (1, 2, 7):
+        served_equal_evaluated(store_server, variants, step=page, page=page)
 
 
 def served_equal_evaluated(
