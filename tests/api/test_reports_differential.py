@@ -114,10 +114,10 @@ def test_reports_of_one_robot_with_a_long_history_equal_their_full_evaluation(st
 
 
 def test_filtered_pages_of_rows_at_the_same_time_keep_the_whole_order(store_server: str) -> None:
-    """A filtered page is chosen by the first values of its rows' order (a message's robot, person and time)
-    and then put in the whole order: messages at three instants, each kept in a batch of its own in the reverse
-    of their IRIs' order (so the rows' numbers do not follow it), read in pages as small as one row with a
-    person, a window and both, equal the query's rows and order (ties at an instant broken by the IRIs)."""
+    """A page is chosen by the first values of its rows' order (a message's robot, person and time) and then
+    put in the whole order: messages at three instants, each kept in a batch of its own in the reverse of their
+    IRIs' order (so the rows' numbers do not follow it), read in pages as small as one row, unfiltered, for a
+    robot, a person, a window and both, equal the query's rows and order (ties broken by the IRIs)."""
     base = [f"{iri('robot', 'ari')} {term('rdf:type')} {term('oro:Robot')} ."]
     base += [f"{iri('human', human)} {term('rdf:type')} {term('oro:Human')} ." for human in ("maria", "juan")]
     send(store_server, base)
@@ -133,6 +133,8 @@ def test_filtered_pages_of_rows_at_the_same_time_keep_the_whole_order(store_serv
         ])  # fmt: skip
         settle(store_server)
     variants = [
+        {},
+        {"robot": f"{EX}robot/ari"},
         {"human": f"{EX}human/maria"},
         {"since": "2026-03-10T09:01:00Z", "until": "2026-03-10T09:02:00Z"},
         {"human": f"{EX}human/juan", "since": "2026-03-10T09:00:00Z", "until": "2026-03-10T09:01:00Z"},

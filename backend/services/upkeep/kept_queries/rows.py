@@ -11,9 +11,9 @@ Compact on disk (a million triples of one robot: its rows were as big as the sto
 the IRIs its filters compare and its facets are numbers from the database's table of terms (`upkeep/terms.py`);
 a row is stored as the JSON list of its values; a filter on the first column the report sorts by (a robot,
 in the conversations) is a range of the sort key's index rather than an index of its own. A plain report's
-filter indexes hold the first value of the sort key (`head`: a message's time) rather than the whole key (its
-time and the IRIs that break ties, about 190 bytes a message, once in each index); a filtered page is chosen
-by its heads and its rows then put in the whole key's order (`_filtered_page`).
+indexes (its order, its filters) hold the head of the sort key (`head_of`: a message's time) rather than the
+whole key (its time and the IRIs that break ties, about 190 bytes a message, once in each index); a page is
+chosen by its heads and its rows then put in the whole key's order (`_head_page`).
 """
 
 from __future__ import annotations
@@ -105,10 +105,15 @@ class Layout:
 
     @property
     def indexes_head(self) -> bool:
-        """Whether the filter indexes hold the sort key's head rather than the whole key: a plain report's do;
-        an aggregate's filtered pages group their contributions by the whole key, read in its order from the
-        filter's index."""
+        """Whether the indexes hold the sort key's head rather than the whole key: a plain report's do; an
+        aggregate's filtered pages group their contributions by the whole key, read in its order from the
+        filter's index, and its groups are found by the whole key."""
         return not self.plan.is_aggregate
+
+    @property
+    def order_column(self) -> str:
+        """What the indexes order rows by: the head, or the whole sort key."""
+        return HEAD if self.indexes_head else "ord"
 
     @property
     def column_count(self) -> int:
@@ -125,15 +130,14 @@ class Layout:
                              *aggregate])  # fmt: skip
         statements = [
             f"CREATE TABLE IF NOT EXISTS {self.table} ({columns}, PRIMARY KEY (unit, n))",
-            f"CREATE INDEX IF NOT EXISTS {self.table}_ord ON {self.table} (ord, unit, n)",
+            f"CREATE INDEX IF NOT EXISTS {self.table}_ord ON {self.table} ({self.order_column}, unit, n)",
             f"CREATE TABLE IF NOT EXISTS {self.table}_facets (param TEXT, value INTEGER, anchor INTEGER, "
             "PRIMARY KEY (param, value, anchor)) WITHOUT ROWID",
         ]
-        order = HEAD if self.indexes_head else "ord"
         for sql in dict.fromkeys([*self.filter_columns.values(), *self.anchors.values()]):
             # The sort key (or its head): a filtered page is chosen from this index alone (see `page`).
             statements.append(
-                f"CREATE INDEX IF NOT EXISTS {self.table}_{sql} ON {self.table} ({sql}, {order}, unit, n)"
+                f"CREATE INDEX IF NOT EXISTS {self.table}_{sql} ON {self.table} ({sql}, {self.order_column}, unit, n)"
             )
         if self.plan.is_aggregate:
             for index, kept in enumerate(self.plan.aggregates):
@@ -214,12 +218,10 @@ def head_of(key: str) -> str:
 
 @dataclass(frozen=True)
 class Conditions:
-    """A page's WHERE conditions; `by_column`: one of them compares a filter column or a facet's anchor (not
-    only the sort key's range)."""
+    """A page's WHERE conditions and their arguments."""
 
     where: list[str]
     arguments: list[object]
-    by_column: bool
 
 
 def _named(row: Row, variable: str) -> bool:
@@ -364,44 +366,32 @@ class KeptRows:
         if after is not None:
             cursor = _cursor(after)
             where.append("(ord, unit, n) > (?, ?, ?)")
-            arguments += cursor
-            if conditions.by_column:
-                where.append(f"{HEAD} >= ?")  # what the filter's index can skip by itself
-                arguments.append(head_of(str(cursor[0])).encode())
-        if conditions.by_column:
-            rows = self._filtered_page(layout, where, arguments, limit, offset)
-        else:
-            clause = f"WHERE {' AND '.join(where)}" if where else ""
-            chosen = f"FROM {layout.table} {clause} ORDER BY ord, unit, n LIMIT ? OFFSET ?"
-            rows = (
-                self.db.reader()
-                .execute(f"SELECT ord, unit, n, row {chosen}", [*arguments, limit + 1, offset])
-                .fetchall()
-            )
+            where.append(f"{HEAD} >= ?")  # what the index can skip by itself
+            arguments += [*cursor, head_of(str(cursor[0])).encode()]
+        rows = self._head_page(layout, where, arguments, limit, offset)
         kept = rows[:limit]
         last = _cursor_of(kept[-1][0], kept[-1][1], kept[-1][2]) if kept else None
         return Page([layout.loaded(row[3]) for row in kept], len(rows) > limit, last if len(rows) > limit else None)
 
-    def _filtered_page(
+    def _head_page(
         self, layout: Layout, where: list[str], arguments: list[object], limit: int, offset: int
     ) -> list[Any]:
-        """The first `offset + limit + 1` rows a filter matches, in the report's order, skipping `offset`. A
-        filter (a window, a person) matches thousands of rows in another order than the report's: the page is
-        chosen from the filter's index, which holds each row's head, and only its rows are read (a page of a
-        one-day window at 1M triples: 23 ms with every matching row sorted whole, 11 ms so). The rows whose
-        head is at most the last head chosen hold the page whole — a row of a greater head sorts after them
-        all — and are put in the whole key's order."""
+        """The first `offset + limit + 1` rows the conditions match, in the report's order, skipping `offset`.
+        They are chosen by their heads from an index that holds them: the order's, or a filter's (a window
+        matches thousands of rows in another order than the report's, and only the page's rows are read: a
+        page of a one-day window at 1M triples, 23 ms with every matching row sorted whole, 11 ms so). The
+        rows whose head is at most the last head chosen hold the page whole — a row of a greater head sorts
+        after them all — and are put in the whole key's order."""
         reader = self.db.reader()
         wanted = offset + limit + 1
-        clause = " AND ".join(where)
+        clause = f"WHERE {' AND '.join(where)}" if where else ""
         heads = reader.execute(
-            f"SELECT {HEAD} FROM {layout.table} WHERE {clause} ORDER BY {HEAD}, unit, n LIMIT ?",
-            [*arguments, wanted],
+            f"SELECT {HEAD} FROM {layout.table} {clause} ORDER BY {HEAD}, unit, n LIMIT ?", [*arguments, wanted]
         ).fetchall()
         if len(heads) == wanted:
-            clause += f" AND {HEAD} <= ?"
+            clause += f" {'AND' if where else 'WHERE'} {HEAD} <= ?"
             arguments = [*arguments, heads[-1][0]]
-        chosen = f"SELECT rowid FROM {layout.table} WHERE {clause}"
+        chosen = f"SELECT rowid FROM {layout.table} {clause}"
         return reader.execute(
             f"SELECT ord, unit, n, row FROM {layout.table} WHERE rowid IN ({chosen}) ORDER BY ord, unit, n "
             "LIMIT ? OFFSET ?",
@@ -445,7 +435,6 @@ class KeptRows:
         """The WHERE conditions of the bound parameters; None when one names an IRI no row holds."""
         where: list[str] = []
         arguments: list[object] = []
-        by_column = False
         named = [term_text(term) for name, term in bound.items() if isinstance(term, NamedNode)]
         ids = terms.lookup(self.db.reader(), TERMS, named) if named else {}
         for condition in layout.plan.column_filters:
@@ -453,10 +442,12 @@ class KeptRows:
             if term is None:
                 continue
             column = condition.column[1:]
-            if column == layout.sorted_by:  # the rows of one value are a range of the sort key
+            if column == layout.sorted_by:  # the rows of one value are a range of the sort key, and of its head
                 prefix = sort_key([term]) + SEPARATOR
-                where.append("ord >= ? AND ord < ?")
-                arguments += [prefix, prefix[:-1] + chr(ord(SEPARATOR) + 1)]
+                bounds = [prefix, prefix[:-1] + chr(ord(SEPARATOR) + 1)]
+                order = layout.order_column
+                where.append(f"{order} >= ? AND {order} < ?")
+                arguments += [edge.encode() for edge in bounds] if layout.indexes_head else bounds
                 continue
             kind = layout.parameters[condition.parameter].type
             if kind == "iri":
@@ -467,7 +458,6 @@ class KeptRows:
                 value = filter_value(term, kind)
             where.append(f"{layout.filter_columns[column]} {condition.op} ?")
             arguments.append(value)
-            by_column = True
         for facet in layout.plan.facet_filters:
             term = bound.get(facet.parameter)
             if term is None:
@@ -477,8 +467,7 @@ class KeptRows:
             anchor = layout.anchors[facet.anchor[1:]]
             where.append(f"{anchor} IN (SELECT anchor FROM {layout.table}_facets WHERE param = ? AND value = ?)")
             arguments += [facet.parameter, ids[term_text(term)]]
-            by_column = True
-        return Conditions(where, arguments, by_column)
+        return Conditions(where, arguments)
 
     def _aggregate_page(
         self, layout: Layout, where: list[str], arguments: list[object], limit: int, offset: int, after: str | None
