@@ -196,7 +196,7 @@ class Layout:
         return dict(zip((name[1:] for name in self.stored_columns()), _loaded(text), strict=True))
 
 
-# A row's head, as the filter indexes hold it: the table stores only its length, the index its bytes, cut by
+# A row's head, as a plain report's indexes hold it: the table stores only its length, the index its bytes, cut by
 # SQLite from the sort key's (as bytes: SQLite's text functions stop at a key's first SEPARATOR; byte order is
 # the keys' order). Queries name it as the index does.
 HEAD = "substr(CAST(ord AS BLOB), 1, head_length)"
