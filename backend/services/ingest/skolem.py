@@ -15,8 +15,9 @@ How a component is placed: a tree (what Turtle's `[ ]` and `( )` always produce)
 O(n log n), from its centre (AHU tree hashing), so a 50,000-deep nesting costs well under a second. A component
 with cycles (only `_:label` references make them) is coloured by refinement to a fixed point (1-dimensional
 Weisfeiler-Leman), individualising the earliest node of any class still holding several, until every class
-is a single node. Cyclic components above MAX_CYCLIC_NODES are named by position alone: still never merged,
-but only a re-post of the same text is guaranteed to reuse their IRIs.
+is a single node; each name carries the component's whole colouring, so different components never share one.
+Cyclic components above MAX_CYCLIC_NODES are named by position alone: still never merged, but only a re-post
+of the same text is guaranteed to reuse their IRIs.
 """
 
 from __future__ import annotations
@@ -217,7 +218,10 @@ def _refined_names(graph: _BlankGraph, component: list[str]) -> dict[str, str]:
             classes[colours[node]].append(node)
         tied = [members for members in classes.values() if len(members) > 1]
         if not tied:
-            return colours
+            # A colour is a node's place only after as many rounds as its own component needed: two different
+            # components can settle with a node alike. The component's whole colouring tells them apart.
+            structure = _digest("cyclic", *sorted(colours.values()))
+            return {node: _digest(structure, colour) for node, colour in colours.items()}
         chosen = min(tied, key=lambda members: colours[members[0]])[0]
         colours[chosen] = _digest("individual", colours[chosen])
 
