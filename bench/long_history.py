@@ -4,13 +4,13 @@
     python -m bench.long_history --sizes 10000 1000000
 
 For each size, one robot's history (the receptionist of examples/receptionist.py: a new visitor each visit, the
-robot's node gaining children with every one) is loaded into a fresh embedded store, the server's views are
-built from it, and then 30 more visits are posted one at a time through the server's own write path (journal,
-applier, views' keeper), in process. Each post is timed from the applier's write until every view includes it
-(the views' keeper in its own thread, as `bench/breakdown.py` measures it), and its work is counted: the
-store's queries and the rows they answered, and the SQLite steps of each view's database. Then the same for
-the PyPI client's cumulative re-publish: the robot's whole graph of the last visits sent again with one new
-visit, whose only new triples are that visit's.
+robot's node gaining children with every one) is loaded into a fresh embedded store and the server's views are
+built from it. Then 30 more visits are posted one at a time through the server's own write path (journal,
+applier, views' keeper), in process, the sizes taking turns post by post. Each post is timed from the applier's
+write until every view includes it (the views' keeper in its own thread, as `bench/breakdown.py` measures it),
+and its work is counted: the store's queries and the rows they answered, and the SQLite steps of each view's
+database. Then the same for the PyPI client's cumulative re-publish: the robot's whole graph of the last visits
+sent again with one new visit, whose only new triples are that visit's.
 
 The upkeep must not grow with the history: the ratios against the smallest size are printed beside each row.
 """
@@ -35,7 +35,7 @@ from pyoxigraph import RdfFormat
 from bench.measure import machine
 from bench.one_robot import SECONDS_PER_VISIT, OneRobot, one_robot
 from segb_server.backend.config import Settings
-from segb_server.backend.services.container import Services, build_services
+from segb_server.backend.services.container import VIEW_FILES, Services, build_services
 from segb_server.backend.services.ingest.payloads import RdfPayload
 from segb_server.backend.services.upkeep.keeper import MAX_REST_SECONDS
 from segb_server.backend.store.factory import open_store
@@ -88,47 +88,78 @@ class CountingStore(OxigraphStore):
         return super().query(sparql, bindings, timeout)
 
 
-def measure_size(robot: OneRobot, triples: int, root: Path) -> SizeFigures:
-    visits = max(1, (triples - len(robot.first.splitlines())) // len(robot.visit(0).splitlines()))
-    data_dir = root / f"size-{triples}"
-    settings = Settings(_env_file=None, store="oxigraph", data_dir=data_dir)  # type: ignore[call-arg]
-    store = CountingStore(settings.graph_uri, data_dir / "oxigraph")
-    began = time.perf_counter()
-    store._store.bulk_load((robot.first + "\n").encode(), RdfFormat.N_TRIPLES)
-    for start in range(0, visits, LOAD_VISITS):
-        chunk = robot.history(min(LOAD_VISITS, visits - start), start)
-        store._store.bulk_load(chunk.encode(), RdfFormat.N_TRIPLES)
-    load_seconds = time.perf_counter() - began
-    services = build_services(settings, store)
-    ticks = _watch_views(services)
-    began = time.perf_counter()
-    services.start()
-    assert services.writes.wait_viewed(0, 7200), "the views were not built"
-    build_seconds = time.perf_counter() - began
+class History:
+    """One size: a robot's history loaded into its own store, its server's services built and started on it, and
+    what its posts measured. Every size stays open while the others are measured: their posts alternate, so a
+    drift of the machine's speed (a shared virtual machine's) weighs on every size alike."""
+
+    def __init__(self, robot: OneRobot, triples: int, root: Path) -> None:
+        self.robot = robot
+        self.visits = max(1, (triples - len(robot.first.splitlines())) // len(robot.visit(0).splitlines()))
+        self.data_dir = root / f"size-{triples}"
+        settings = Settings(_env_file=None, store="oxigraph", data_dir=self.data_dir)  # type: ignore[call-arg]
+        self.store = CountingStore(settings.graph_uri, self.data_dir / "oxigraph")
+        began = time.perf_counter()
+        self.store._store.bulk_load((robot.first + "\n").encode(), RdfFormat.N_TRIPLES)
+        for start in range(0, self.visits, LOAD_VISITS):
+            chunk = robot.history(min(LOAD_VISITS, self.visits - start), start)
+            self.store._store.bulk_load(chunk.encode(), RdfFormat.N_TRIPLES)
+        self.load_seconds = time.perf_counter() - began
+        self.services = build_services(settings, self.store)
+        self.ticks = _watch_views(self.services)
+        began = time.perf_counter()
+        self.services.start()
+        assert self.services.writes.wait_viewed(0, 7200), "the views were not built"
+        self.build_seconds = time.perf_counter() - began
+        self.store.work = Work()
+        for name in self.ticks:
+            self.ticks[name] = 0
+        self.delta_ms: list[float] = []
+        self.cumulative_ms: list[float] = []
+        self.work = Work()
+
+    def post_visit(self, n: int) -> None:
+        """The n-th post of one new visit; the work of these posts is what is counted."""
+        self.delta_ms.append(_upkeep_ms(self.services, self.robot.visit(self.visits + n)))
+        self.work = Work(self.store.work.queries, dict(self.ticks))
+
+    def post_cumulative(self, n: int) -> None:
+        """The n-th cumulative re-publish: the last visits sent again with a new one."""
+        index = self.visits + POSTS + n
+        payload = self.robot.history(CUMULATIVE_VISITS, index - CUMULATIVE_VISITS) + self.robot.visit(index)
+        self.cumulative_ms.append(_upkeep_ms(self.services, payload))
+
+    def close(self) -> SizeFigures:
+        self.services.close()
+        self.store.close()
+        return SizeFigures(
+            triples=_triples(self.data_dir),
+            load_seconds=self.load_seconds,
+            build_seconds=self.build_seconds,
+            delta_ms=self.delta_ms,
+            cumulative_ms=self.cumulative_ms,
+            queries_per_post=self.work.queries / POSTS,
+            steps_per_post={name: STEPS_PER_TICK * count / POSTS for name, count in self.work.ticks.items()},
+            disk_mib=_disk(self.data_dir),
+        )
+
+
+def measure(robot: OneRobot, sizes: list[int], root: Path) -> list[SizeFigures]:
+    """Every size loaded and built, then their posts in turns: one visit each, then one re-publish each."""
+    histories: list[History] = []
     try:
-        store.work = Work()
-        for name in ticks:
-            ticks[name] = 0
-        delta_ms = [_upkeep_ms(services, robot.visit(visits + n)) for n in range(POSTS)]
-        work = Work(store.work.queries, dict(ticks))
-        cumulative_ms = []
+        for size in sizes:
+            histories.append(History(robot, size, root))
+            print(f"  {size:,} triples: loaded and built", file=sys.stderr, flush=True)
         for n in range(POSTS):
-            index = visits + POSTS + n
-            payload = robot.history(CUMULATIVE_VISITS, index - CUMULATIVE_VISITS) + robot.visit(index)
-            cumulative_ms.append(_upkeep_ms(services, payload))
+            for history in histories:
+                history.post_visit(n)
+        for n in range(POSTS):
+            for history in histories:
+                history.post_cumulative(n)
     finally:
-        services.close()
-        store.close()
-    return SizeFigures(
-        triples=_triples(data_dir),
-        load_seconds=load_seconds,
-        build_seconds=build_seconds,
-        delta_ms=delta_ms,
-        cumulative_ms=cumulative_ms,
-        queries_per_post=work.queries / POSTS,
-        steps_per_post={name: STEPS_PER_TICK * count / POSTS for name, count in work.ticks.items()},
-        disk_mib=_disk(data_dir),
-    )
+        figures = [history.close() for history in histories]
+    return figures
 
 
 def _watch_views(services: Services) -> dict[str, int]:
@@ -175,9 +206,7 @@ def _disk(data_dir: Path) -> dict[str, float]:
             return sum(item.stat().st_size for item in path.rglob("*") if item.is_file()) / 2**20
         return path.stat().st_size / 2**20 if path.exists() else 0.0
 
-    views = {
-        name: size(data_dir / name) + size(data_dir / f"{name}-wal") for name in ("reports.sqlite3", "graph.sqlite3")
-    }
+    views = {name: size(data_dir / name) + size(data_dir / f"{name}-wal") for name in VIEW_FILES}
     return {"store": size(data_dir / "oxigraph"), **views}
 
 
@@ -186,7 +215,8 @@ def markdown(figures: list[SizeFigures], command: str) -> str:
     lines = [
         f"`{command}`: one robot's history loaded, the views built from it, then {POSTS} posts of one visit each "
         f"(56 triples) and {POSTS} cumulative re-publishes ({CUMULATIVE_VISITS} visits sent again with a new one), "
-        "one at a time; upkeep is from the post's write to the store until every view includes it.",
+        "one at a time, the sizes taking turns; upkeep is from the post's write to the store until every view includes "
+        "it.",
         "",
         "| history (triples) | load s | views built s | upkeep p50 ms (ratio) | cumulative p50 ms (ratio) "
         "| store queries / post | SQLite steps / post (reports, graph) | store / views on disk MiB |",
@@ -220,11 +250,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sizes", type=int, nargs="+", default=list(SIZES), help="history sizes in triples")
     args = parser.parse_args(argv)
     robot = one_robot()
-    figures = []
     with tempfile.TemporaryDirectory(prefix="segb-long-history-") as root, _quiet_collector():
-        for size in args.sizes:
-            figures.append(measure_size(robot, size, Path(root)))
-            print(f"  {size:,} triples: upkeep p50 {figures[-1].delta_p50:.1f} ms", file=sys.stderr, flush=True)
+        figures = measure(robot, args.sizes, Path(root))
     command = "python -m bench.long_history" + (
         "" if args.sizes == list(SIZES) else f" --sizes {' '.join(map(str, args.sizes))}"
     )

@@ -38,6 +38,7 @@ from bench.client import BenchError, Client
 from bench.measure import Latency, machine, percentile
 from bench.one_robot import OneRobot, one_robot
 from bench.server import ServerProcess, segb_server
+from segb_server.backend.services.container import VIEW_FILES
 
 AUDITOR_PAGES = (
     "/reports/conversations?limit=50",
@@ -45,16 +46,6 @@ AUDITOR_PAGES = (
     "/reports/emotion-timeline?limit=50",
     "/reports/ml-usage?limit=50",
     "/graph",
-)
-# Every view's file (with its -wal): the reports', the graph index, the findings (rules, shapes), the timeline, and
-# the registry of the IRIs the store holds that the views are told fresh IRIs by.
-VIEW_FILES = (
-    "reports.sqlite3",
-    "graph.sqlite3",
-    "findings.sqlite3",
-    "shape-findings.sqlite3",
-    "timeline.sqlite3",
-    "seen-terms.sqlite3",
 )
 TARGETS = {"posts/s": 200.0, "lag p99 s": 2.0, "caught up s": 5.0, "page p50 ms": 50.0, "page p95 ms": 150.0}
 # On Virtuoso (the compose default) the targets ask for fewer posts a second and allow the reports further behind.

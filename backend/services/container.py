@@ -61,6 +61,8 @@ GRAPH_FILE = "graph.sqlite3"  # the graph index, likewise
 FINDINGS_FILE = "findings.sqlite3"  # the SPARQL rules' findings, kept as the reports' rows are
 SHAPE_FINDINGS_FILE = "shape-findings.sqlite3"  # the SHACL rules' findings
 TIMELINE_FILE = "timeline.sqlite3"  # the timeline's rows, one table per kind, likewise
+# Every file the views keep beside the store (each with its -wal), the registry of the IRIs the store holds included.
+VIEW_FILES = (REPORTS_FILE, GRAPH_FILE, FINDINGS_FILE, SHAPE_FINDINGS_FILE, TIMELINE_FILE, SEEN_TERMS_FILE)
 
 
 @dataclass
@@ -168,14 +170,7 @@ def build_services(
         max_memory_bytes=settings.sparql_max_memory_bytes,
         snapshots=folder and folder / "snapshots",
     )
-    view_files = (
-        [
-            folder / name
-            for name in (REPORTS_FILE, GRAPH_FILE, FINDINGS_FILE, SHAPE_FINDINGS_FILE, TIMELINE_FILE, SEEN_TERMS_FILE)
-        ]
-        if folder
-        else []
-    )
+    view_files = [folder / name for name in VIEW_FILES] if folder else []
     places = forgetting(writes.journal, shared_context, queries, server_log, view_files)
     erasure = ErasureService(store, catalog.get(ERASURE_RULE), writes, places)
     return Services(

@@ -12,6 +12,15 @@ from segb_server.backend.state.database import Database, Rows
 from segb_server.backend.state.file_lock import FileLock
 
 TYPES = {"serial": "INTEGER PRIMARY KEY", "blob": "BLOB", "real": "REAL", "without_rowid": "WITHOUT ROWID"}
+# What a write-ahead log keeps of its size once its pages are in the file. SQLite otherwise leaves the log at the
+# largest size one transaction ever made it, for as long as the server runs: a view built at a million triples
+# left 78 MiB beside the graph index's 77. A log that fits one ordinary batch is reused without growing.
+WAL_KEPT_BYTES = 4 * 2**20
+
+
+def keep_wal_small(connection: sqlite3.Connection) -> None:
+    """Truncate the connection's write-ahead log to WAL_KEPT_BYTES when it restarts after a checkpoint."""
+    connection.execute(f"PRAGMA journal_size_limit={WAL_KEPT_BYTES}")
 
 
 def vacuum(path: Path) -> None:
@@ -46,6 +55,7 @@ class SqliteDatabase(Database):
             # WAL: a commit is durable across a crash of the server process. NORMAL sync leaves the newest
             # commits to the operating system's cache on a power cut; FULL syncs every commit (slower).
             self._connection.execute("PRAGMA journal_mode=WAL")
+            keep_wal_small(self._connection)
             self._connection.execute(f"PRAGMA synchronous={'FULL' if sync_full else 'NORMAL'}")
             # Freed pages are overwritten: content an erasure removed must not linger in the file.
             self._connection.execute("PRAGMA secure_delete=ON")

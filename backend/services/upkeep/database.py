@@ -15,6 +15,8 @@ import threading
 from pathlib import Path
 from types import TracebackType
 
+from segb_server.backend.state.sqlite import keep_wal_small
+
 
 class ViewDatabase:
     def __init__(self, path: Path | None, schema: list[str]) -> None:
@@ -38,6 +40,7 @@ class ViewDatabase:
         connection = sqlite3.connect(self.path, check_same_thread=False, isolation_level=None, timeout=30)
         connection.execute("PRAGMA busy_timeout=30000")
         connection.execute("PRAGMA synchronous=NORMAL")  # a view is rebuilt from the store if ever lost
+        keep_wal_small(connection)  # a view's build writes its whole file in one transaction
         return connection
 
     def reader(self) -> sqlite3.Connection:
