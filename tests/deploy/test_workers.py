@@ -268,11 +268,12 @@ def test_a_worker_that_cannot_answer_for_seconds_is_not_killed(start_workers: ob
 
 @pytest.mark.parametrize("state", STATES)
 def test_concurrent_resolutions_across_workers_give_one_context(start_workers: object, state: str) -> None:
-    """Rounds of 16 simultaneous resolutions of one observation (each round a new one), until a round was
-    served by more than one worker (the kernel picks; a round is too quick to be always spread)."""
+    """Rounds of 16 simultaneous resolutions of one observation (each round a new one), until three rounds were
+    served by more than one worker (the kernel picks; a round is too quick to be always spread, and one worker
+    may take every connection of ten rounds in a row: SPREAD_ROUNDS for each spread round wanted)."""
     server = start_workers(2, state=state)  # type: ignore[operator]
     spread_rounds = 0
-    for round_number in range(20):
+    for round_number in range(2 * SPREAD_ROUNDS):
         body = {
             "event_kind": "human_utterance",
             "observed_at": f"2026-05-04T10:{round_number:02d}:00+00:00",
