@@ -13,6 +13,7 @@ from segb_server.backend.api.app import create_app
 from segb_server.backend.store.base import Store
 from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.conftest import make_settings
+from tests.services.test_skolem import TWO_CYCLES
 from tests.support.in_process import InProcess
 
 GOOD = '@prefix ex: <https://ex.org/> .\nex:ari a ex:Robot ;\n    ex:name "ARI" .\n'
@@ -196,3 +197,15 @@ def test_blank_nodes_are_skolemised_and_do_not_duplicate_on_republish(
     exported = small_limits_api.get("/events", headers={"Accept": "application/n-triples"}).text
     assert "_:" not in exported
     assert exported.count("http://amor-segb/.well-known/genid/") == 5  # 3 triples as subject, 2 as object
+
+
+def test_two_different_cyclic_blank_structures_are_stored_whole_on_each_store(store_server: str) -> None:
+    """Posted over HTTP as the client posts, on the embedded store and on Virtuoso: every triple is kept (none
+    merged by a shared skolem IRI), and a re-post adds none."""
+    first = httpx.post(f"{store_server}/ttl", json={"ttl_content": TWO_CYCLES}, timeout=60)
+    again = httpx.post(f"{store_server}/ttl", json={"ttl_content": TWO_CYCLES}, timeout=60)
+    assert first.status_code == again.status_code == 201, (first.text, again.text)
+    assert (first.json()["triples_received"], first.json()["triples_new"]) == (18, 18)
+    assert again.json()["triples_new"] == 0
+    exported = httpx.get(f"{store_server}/events", headers={"Accept": "application/n-triples"}, timeout=60).text
+    assert len([line for line in exported.splitlines() if line.strip()]) == 18

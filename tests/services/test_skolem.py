@@ -129,18 +129,20 @@ def test_random_structures_round_trip_as_isomorphic_graphs_and_repost_adds_nothi
     assert set(again) == set(skolemized)  # re-posting the same document adds no triple
 
 
+# Found by the property above: a node at the end of a tail into a 3-cycle and one at the end of a tail into a
+# 4-cycle look alike after as many refinement rounds as each cycle needs to settle. Merging them would drop a
+# triple; each cycle's name must come from its whole structure. 18 triples, 11 blank nodes.
+TWO_CYCLES = """@prefix ex: <https://ex.org/> .
+    _:a1 ex:p _:a2 . _:a2 ex:p _:a3 . _:a3 ex:p _:a1 .
+    _:t1 ex:q _:t2 . _:t2 ex:p _:t3 . _:t3 ex:q _:a1 .
+    _:t1 ex:value "0" . _:t2 ex:value "0" . ex:root ex:q _:t1 . ex:root ex:q _:a1 .
+    _:b1 ex:q _:b2 . _:b2 ex:q _:b3 . _:b3 ex:q _:b4 . _:b4 ex:q _:b1 . _:b1 ex:value "0" .
+    _:u1 ex:q _:b1 . _:u1 ex:value "0" . ex:root ex:q _:u1 .
+"""
+
+
 def test_two_different_cyclic_structures_never_share_a_node() -> None:
-    # Found by the property above: a node at the end of a tail into a 3-cycle and one at the end of a tail into
-    # a 4-cycle look alike after as many refinement rounds as each cycle needs to settle. Merging them would
-    # drop a triple; each cycle's name must come from its whole structure.
-    text = """@prefix ex: <https://ex.org/> .
-        _:a1 ex:p _:a2 . _:a2 ex:p _:a3 . _:a3 ex:p _:a1 .
-        _:t1 ex:q _:t2 . _:t2 ex:p _:t3 . _:t3 ex:q _:a1 .
-        _:t1 ex:value "0" . _:t2 ex:value "0" . ex:root ex:q _:t1 . ex:root ex:q _:a1 .
-        _:b1 ex:q _:b2 . _:b2 ex:q _:b3 . _:b3 ex:q _:b4 . _:b4 ex:q _:b1 . _:b1 ex:value "0" .
-        _:u1 ex:q _:b1 . _:u1 ex:value "0" . ex:root ex:q _:u1 .
-    """
-    quads = list(parse(text.encode(), RdfFormat.TURTLE))
+    quads = list(parse(TWO_CYCLES.encode(), RdfFormat.TURTLE))
     skolemized = skolemize(quads, BASE)
     assert len(set(skolemized)) == len(set(quads))
     assert len({term for q in skolemized for term in (q.subject, q.object) if term.value.startswith(BASE)}) == 11
