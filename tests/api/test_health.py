@@ -5,16 +5,21 @@ from __future__ import annotations
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 import httpx
 import pytest
 
 from segb_server.backend.api.app import create_app
+from segb_server.backend.store.base import QueryResult, StoreRejectedQuery
 from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.conftest import make_settings, virtuoso_store
 from tests.support.in_process import InProcess, Server, http
 from tests.support.settle import settle
 from tests.support.virtuoso import VirtuosoProcess
+
+FIXTURES = Path(__file__).resolve().parents[1] / "fixtures"
+EX_LATE = "https://example.org/late/"
 
 
 def test_live_and_ready_on_the_embedded_store(tmp_path: Path) -> None:
@@ -91,4 +96,57 @@ def test_health_keeps_answering_while_a_large_ingest_runs(tmp_path: Path) -> Non
         ingest.join()
     assert store.count() == 250_000
     assert answered_during_ingest >= 10, "health was not answered while the ingest ran: it waited behind it"
+    store.close()
+
+
+class RefusingStore(OxigraphStore):
+    """The embedded store refusing the emotion-timeline report's query while `refusing` is set, as a store may
+    refuse one query (too costly, a limit of its own) and answer every other."""
+
+    refusing = True
+
+    def query(self, sparql: str, bindings: Any = None, timeout: float | None = None) -> QueryResult:
+        if self.refusing and "targetKind" in sparql and "param_threshold" in sparql:
+            raise StoreRejectedQuery("the store refused the emotion timeline's query")
+        return super().query(sparql, bindings, timeout)
+
+
+def test_readiness_tells_why_a_view_stays_behind_and_the_views_after_it_are_built(tmp_path: Path) -> None:
+    """A view whose query the store refuses neither stops the views built after it nor goes unexplained:
+    readiness names it as still being built with the error retried (`views_error`), the other reports are
+    served from their rows, and once the store answers everything is built and readiness is exact again."""
+    store = RefusingStore("http://amor-segb/events", tmp_path / "store")
+    with InProcess(create_app(make_settings(store="oxigraph", data_dir=tmp_path / "data"), store=store)) as server:
+        posted = server.post(
+            "/ttl", json={"ttl_content": (FIXTURES / "sample_two_robots.ttl").read_text(), "user": "r"}
+        )
+        assert posted.status_code == 201, posted.text
+        deadline = time.monotonic() + 30
+        while (body := server.get("/healthz/ready").json()).get("views_building") != ["reports/emotion-timeline"] or (
+            "reports_lag" in body  # the other views built, and current
+        ):
+            assert time.monotonic() < deadline, body
+            time.sleep(0.05)
+        assert body["ready"] is True
+        assert "reports/emotion-timeline" in body["views_error"] and "refused" in body["views_error"]
+        late = (
+            f'<{EX_LATE}robot> a <http://kb.openrobots.org#Robot> ; <http://schema.org/name> "Late robot" .\n'
+            f"<{EX_LATE}human> a <http://kb.openrobots.org#Human> .\n"
+            f"<{EX_LATE}message> <http://www.w3.org/ns/prov#wasGeneratedBy> <{EX_LATE}heard> ;\n"
+            f"    <http://schema.org/sender> <{EX_LATE}human> .\n"
+            f"<{EX_LATE}heard> <http://www.gsi.upm.es/ontologies/segb/ns#wasPerformedBy> <{EX_LATE}robot> ;\n"
+            '    <http://www.w3.org/ns/prov#startedAtTime> "2026-03-10T10:00:00Z"'
+            "^^<http://www.w3.org/2001/XMLSchema#dateTime> ."
+        )
+        assert server.post("/ttl", json={"ttl_content": late, "user": "r"}).status_code == 201
+        deadline = time.monotonic() + 30
+        while "Late robot" not in (page := server.get("/reports/participants")).text:  # kept by its rows
+            assert time.monotonic() < deadline, page.text
+            time.sleep(0.05)
+        assert page.json()["served_from"] == "rows"
+        store.refusing = False
+        settle(server.client)
+        ready = server.get("/healthz/ready")
+        assert (ready.status_code, ready.text) == (200, '{"ready": true, "oxigraph": true}')
+        assert server.get("/reports/emotion-timeline", params={"limit": 1}).json()["served_from"] == "rows"
     store.close()

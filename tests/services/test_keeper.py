@@ -13,6 +13,7 @@ from segb_server.backend.services.ingest.service import post_entry
 from segb_server.backend.services.upkeep.delta import Delta
 from segb_server.backend.services.upkeep.keeper import (
     MAX_REST_SECONDS,
+    RETRY_BUILD_SECONDS,
     START_WITHIN_SECONDS,
     ViewKeeper,
 )
@@ -189,4 +190,69 @@ def test_the_views_being_built_are_named_while_the_store_holds_entries_they_miss
         assert slow.built and slow.ready and quick.ready
     finally:
         slow.release.set()
+        keeper.stop()
+
+
+class FailingBuild(RecordingView):
+    """A view never built before whose first `failures` builds raise a bug (not an outage)."""
+
+    def __init__(self, name: str, failures: int) -> None:
+        super().__init__(name)
+        self.failures = failures
+
+    def stored_through(self) -> int | None:
+        return None if not self.built else self.built[-1]
+
+    def build(self, through: int) -> None:
+        if self.failures:
+            self.failures -= 1
+            raise RuntimeError("a view's bug while it is built")
+        super().build(through)
+
+
+def test_a_view_whose_build_fails_is_set_aside_the_others_kept_current_and_it_is_built_again(tmp_path: Path) -> None:
+    """A build failing on its own (a bug, its query refused) must neither end the views' thread nor hold the
+    other views back (every report would stay behind for good): they are built and kept current, the failing
+    one is built again every RETRY_BUILD_SECONDS, and meanwhile the error is what readiness tells."""
+    store = OxigraphStore("urn:x:graph")
+    store.apply([Quad(NamedNode("urn:x:s"), NamedNode("urn:x:p"), NamedNode("urn:x:o"), DefaultGraph())], through=3)
+    failing, after = FailingBuild("failing", failures=2), FailingBuild("after", failures=0)
+    keeper = ViewKeeper(store, Journal(SqliteDatabase(tmp_path / "journal.sqlite3")), [failing, after])
+    keeper.start()
+    try:
+        assert keeper.wait_for(3, timeout=10)  # every view but the one set aside
+        assert after.ready and not failing.ready and after.built == [3] and failing.built == []
+        assert keeper.building(applied=3) == ["failing"]
+        assert keeper.last_error == "failing: a view's bug while it is built"
+        keeper.on_applied(step(4))  # kept by the others meanwhile
+        after.wait_for_updates(1)
+        assert [through for through, _, _ in after.updates] == [4] and failing.updates == []
+        deadline = time.monotonic() + 4 * RETRY_BUILD_SECONDS
+        while keeper.building(applied=4):
+            assert time.monotonic() < deadline, keeper.building(applied=4)
+            time.sleep(0.01)
+        assert failing.ready and failing.built in ([3], [4]) and failing.failures == 0 and keeper.last_error is None
+        keeper.on_applied(step(5))
+        failing.wait_for_updates(1)
+        assert keeper.wait_for(5, timeout=10)
+    finally:
+        keeper.stop()
+
+
+def test_a_view_whose_rebuild_after_a_failed_update_fails_is_set_aside_and_built_again(tmp_path: Path) -> None:
+    """An update failing with a bug has the views built again; when that build fails too, the view is set
+    aside and built again later, the views' thread living on."""
+    view = FailingBuild("broken", failures=1)
+    view.built, view.failing = [0], True  # built before; every update fails
+    keeper = ViewKeeper(OxigraphStore("urn:x:graph"), Journal(SqliteDatabase(tmp_path / "journal.sqlite3")), [view])
+    keeper.start()
+    try:
+        keeper.on_applied(step(1))
+        assert keeper.wait_for(1, timeout=10)
+        deadline = time.monotonic() + 4 * RETRY_BUILD_SECONDS
+        while keeper.building(applied=1):
+            assert time.monotonic() < deadline, keeper.last_error
+            time.sleep(0.01)
+        assert view.built == [0, 1] and view.failures == 0 and view.ready and keeper.last_error is None
+    finally:
         keeper.stop()

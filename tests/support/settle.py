@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import sys
+import threading
 import time
+import traceback
 
 from tests.support.in_process import Server, http
 
@@ -18,8 +21,20 @@ def settle(server: Server, timeout: float = 60) -> None:
         if answer.status_code == 200 and caught_up:
             return
         if time.monotonic() > deadline:
-            raise AssertionError(f"the server did not settle within {timeout} s: {body}")
+            raise AssertionError(f"the server did not settle within {timeout} s: {body}\n{server_threads()}")
         time.sleep(0.02)
+
+
+def server_threads() -> str:
+    """Where each of the server's own threads is (`segb-*`: the applier, the views and their workers), for a
+    test's servers run in this process: what a server that does not settle is waiting for."""
+    frames = sys._current_frames()
+    stacks = [
+        f"thread {thread.name}:\n" + "".join(traceback.format_stack(frames[thread.ident])[-12:])
+        for thread in threading.enumerate()
+        if thread.name.startswith("segb") and thread.ident in frames
+    ]
+    return "\n".join(stacks) or "(no server thread in this process)"
 
 
 def kept_rows(server: Server, report: str, timeout: float = 60) -> None:

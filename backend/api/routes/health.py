@@ -47,7 +47,8 @@ async def live() -> ProbeResponse:
         'to apply, `"apply_lag": {"entries", "seconds"}` says how far behind it is, and '
         '`"reports_lag": {"entries", "seconds"}` how far the views (the reports\' rows and the graph index) are '
         'behind the store (both absent once caught up); `"views_building"` lists the views being built (at '
-        "start, or after a change of their definitions), absent once built."
+        "start, or after a change of their definitions), absent once built; while the views are behind because "
+        'reading the store or writing their own storage fails, `"views_error"` tells the error being retried.'
     ),
     response_class=ProbeResponse,
     responses={
@@ -86,6 +87,8 @@ async def ready(services: ServicesDep) -> ProbeResponse:
         building = services.writes.building_views()
         if building:
             body["views_building"] = building
+        if (lag.views_entries or building) and (views_error := services.writes.views_error()):
+            body["views_error"] = views_error  # why they stay behind: an operator's first question
         return body, status
 
     body, status = await anyio.to_thread.run_sync(probe, limiter=_probe_threads)

@@ -43,7 +43,8 @@ from segb_server.backend.services.upkeep.seen_terms import SeenTerms
 from segb_server.backend.services.writing.applier import Applied, Applier, applied_steps, quads_of
 from segb_server.backend.services.writing.cursor import Cursor
 from segb_server.backend.services.writing.journal import Journal
-from segb_server.backend.store.base import Store
+from segb_server.backend.state.database import StateUnavailable
+from segb_server.backend.store.base import Store, StoreUnavailable
 
 logger = logging.getLogger("segb.views")
 
@@ -68,6 +69,9 @@ FOLLOW_SECONDS = 0.25  # how often a following process reads how far the leader'
 # entries' numbers and its triples are read back from the journal when its turn comes, so memory stays bounded
 # however far the views fall behind (a burst of posts, a slow store).
 MAX_QUEUED_TRIPLES = 20_000
+# A view whose build failed on its own (its query refused by the store, a bug) is set aside and built again
+# this often; the others are kept current meanwhile, and its report is evaluated in full.
+RETRY_BUILD_SECONDS = 2.0
 
 
 class KeptView(Protocol):
@@ -168,6 +172,8 @@ class ViewKeeper:
         self._thread: threading.Thread | None = None
         self._stopping = threading.Event()  # ends retry waits too: a store that never returns must not hold shutdown
         self.last_error: str | None = None
+        self._set_aside: dict[str, str] = {}  # view → the error its last build failed with (keeper's thread)
+        self._retry_at = 0.0  # when the views set aside are built again (time.monotonic())
         self.cursor = Cursor()  # the journal entry every view is current through
         self._spent = {view.name: ViewTime() for view in views}  # written by the keeper's thread only
         workers = max(1, len(views)) if store.remote else EMBEDDED_VIEW_WORKERS
@@ -204,7 +210,11 @@ class ViewKeeper:
 
     def wait_for(self, sequence: int, timeout: float) -> bool:
         """Wait until the views include journal entry `sequence` (True), or `timeout` seconds passed."""
-        return self.cursor.wait_for(sequence, timeout, reached=lambda: all(p.ready for p in self.views))
+        return self.cursor.wait_for(sequence, timeout, reached=self._served_from_views)
+
+    def _served_from_views(self) -> bool:
+        """Every view is ready, but those set aside (tried again later; their reports are evaluated in full)."""
+        return all(view.ready or view.name in self._set_aside for view in self.views)
 
     def view_times(self) -> dict[str, ViewTime]:
         """Each view's updates so far (a copy)."""
@@ -226,7 +236,7 @@ class ViewKeeper:
         """The views not ready yet (built at start, or rebuilt) while the store holds entries they do not:
         what reads them answers from the store meanwhile, or (the findings) says it is building. None when
         there is nothing they miss (an empty store: nothing to build)."""
-        if applied <= self.through:
+        if applied <= self.through and not self._set_aside:
             return []
         return [view.name for view in self.views if not view.ready]
 
@@ -267,8 +277,8 @@ class ViewKeeper:
             except OUTAGES as error:
                 self.last_error = str(error)
                 logger.warning("building the views failed (%s); retrying", error)
-                if self._stopping.wait(2):
-                    return
+            if self._stopping.wait(2):
+                return
         if self._housekeeping is not None:
             try:
                 self._housekeeping()
@@ -279,6 +289,8 @@ class ViewKeeper:
             steps = self._next_steps(rested)
             if steps is None:
                 return
+            if self._set_aside and time.monotonic() >= self._retry_at:
+                self._build_set_aside()
             applied = [step for step in steps if not isinstance(step, _Marker)]
             began = time.monotonic()
             if applied and not self._process_retrying(applied):
@@ -294,10 +306,14 @@ class ViewKeeper:
         """What to do next, once the rest ending at `rested` is over (or the first step waiting has waited
         START_WITHIN_SECONDS): what the applier queued, or (where another process applies) what the journal
         holds up to the store's cursor. None when stopping."""
+        if self._applier is not None:
+            wait: float | None = FOLLOW_SECONDS
+        else:
+            wait = max(0.0, self._retry_at - time.monotonic()) if self._set_aside else None
         try:
-            first = self._queue.get(timeout=None if self._applier is None else FOLLOW_SECONDS)
+            first = self._queue.get(timeout=wait)
         except queue.Empty:
-            return list(self._pulled())
+            return [] if self._applier is None else list(self._pulled())
         if first is None:
             return None
         if self._stopping.wait(max(0.0, min(rested, first.since + START_WITHIN_SECONDS) - time.monotonic())):
@@ -361,21 +377,30 @@ class ViewKeeper:
         while True:
             try:
                 self._process(applied)
-                self.last_error = None
+                self._told_errors()
                 return True
             except OUTAGES as error:
                 self.last_error = str(error)
                 logger.warning("keeping the views current failed (%s); retrying", error)
                 if self._stopping.wait(1):
                     return False
-            except Exception:
+            except Exception as error:
                 logger.exception("keeping the views current failed; building them again")
+                self.last_error = f"{type(error).__name__}: {error}"
                 last = applied[-1]
                 through = last.last if isinstance(last, _Unread) else last.entries[-1].sequence
-                if self.seen_terms is not None:
-                    self.seen_terms.build(self.store, through)
-                for view in self.views:
-                    view.build(through)
+                try:
+                    if self.seen_terms is not None:
+                        self.seen_terms.build(self.store, through)
+                    for view in self.views:
+                        self._build_or_set_aside(view, through)
+                except OUTAGES as outage:  # the thread lives on: the batch is tried again
+                    self.last_error = str(outage)
+                    logger.warning("building the views again failed (%s); retrying", outage)
+                    if self._stopping.wait(1):
+                        return False
+                    continue
+                self._told_errors()
                 self._advance(through)
                 return True
 
@@ -393,24 +418,77 @@ class ViewKeeper:
             self._advance(min(known))
 
     def _prepare_all(self) -> None:
+        """Build each view never built (or of another version) and catch up the others, through the entry the
+        store holds now. A view failing on its own (a bug, its query refused) is left unready and the next ones
+        prepared all the same (raising ViewsNotBuilt at the end, to be tried again): a dead views' thread or one
+        view holding the others back would leave every report behind for good. A store away stops them all."""
         current = self.store.applied_through() or 0
         if self.seen_terms is not None:
             self._prepare_seen_terms(self.seen_terms, current)
         for view in self.views:
-            stored = view.stored_through()
-            if stored is None:
-                self._build(view, current)
-            else:
-                try:
-                    self._catch_up(view, stored, current)
-                except OUTAGES:
-                    raise
-                except Exception:  # as in `_process_retrying`: the thread must live on, and the view be current
-                    logger.exception("catching view %s up failed; building it again", view.name)
-                    self._build(view, current)
+            if view.ready and view.stored_through() == current:
+                continue  # prepared by an earlier try, which the store's outage ended
+            try:
+                self._prepare(view, current)
+            except (StoreUnavailable, StateUnavailable):
+                raise  # away for every view: tried again as a whole
+            except Exception as error:  # this view's own: its query refused, a bug
+                self._set_view_aside(view, error)
+                continue
             view.prepared()
             view.ready = True
+        self._told_errors()
         self._advance(current)
+
+    def _set_view_aside(self, view: KeptView, error: Exception) -> None:
+        if isinstance(error, OUTAGES):
+            logger.warning("building view %s failed (%s); trying again in %g s", view.name, error, RETRY_BUILD_SECONDS)
+        else:
+            logger.exception("building view %s failed; trying again in %g s", view.name, RETRY_BUILD_SECONDS)
+        view.ready = False
+        self._set_aside[view.name] = f"{view.name}: {error}"
+        self._retry_at = time.monotonic() + RETRY_BUILD_SECONDS
+
+    def _build_or_set_aside(self, view: KeptView, through: int) -> None:
+        """Build `view` through `through` (raising the store's outage), or set it aside when it fails on its
+        own."""
+        try:
+            self._build(view, through)
+        except (StoreUnavailable, StateUnavailable):
+            raise
+        except Exception as error:
+            self._set_view_aside(view, error)
+            return
+        self._set_aside.pop(view.name, None)
+        view.prepared()
+        view.ready = True
+
+    def _build_set_aside(self) -> None:
+        """Build again, through where the others are, the views whose build failed."""
+        for view in [view for view in self.views if view.name in self._set_aside]:
+            try:
+                self._build_or_set_aside(view, self.through)
+            except OUTAGES as outage:  # the store away: the next turn tries again
+                self._set_aside[view.name] = f"{view.name}: {outage}"
+                self._retry_at = time.monotonic() + RETRY_BUILD_SECONDS
+        self._told_errors()
+
+    def _told_errors(self) -> None:
+        """What readiness tells as the views' error: why the views set aside are not built (None when none is)."""
+        self.last_error = "; ".join(self._set_aside.values()) or None
+
+    def _prepare(self, view: KeptView, current: int) -> None:
+        stored = view.stored_through()
+        if stored is None:
+            self._build(view, current)
+            return
+        try:
+            self._catch_up(view, stored, current)
+        except OUTAGES:
+            raise
+        except Exception:  # as in `_process_retrying`: the thread must live on, and the view be current
+            logger.exception("catching view %s up failed; building it again", view.name)
+            self._build(view, current)
 
     def _prepare_seen_terms(self, seen: SeenTerms, current: int) -> None:
         """The registry of IRIs made to include the store through `current`, before any view's batch uses it."""
@@ -466,11 +544,12 @@ class ViewKeeper:
             fresh = self.seen_terms.admit(quads, steps[0].entries[0].sequence, through)
         delta = Delta.of(quads, fresh)  # matched by every view
         began = time.perf_counter()
-        updates = [self._workers.submit(_timed, view.update, delta, through) for view in self.views]
+        kept = [view for view in self.views if view.name not in self._set_aside]  # those are built again instead
+        updates = [self._workers.submit(_timed, view.update, delta, through) for view in kept]
         for update in updates:  # every one finishes before an error is raised: a retry starts from a quiet state
             update.exception()
         seconds: dict[str, float] = {}
-        for view, update in zip(self.views, updates, strict=True):
+        for view, update in zip(kept, updates, strict=True):
             wall, cpu = update.result()
             seconds[view.name] = wall
             spent = self._spent[view.name]
@@ -496,8 +575,8 @@ class ViewKeeper:
             if isinstance(view, ForgetsErased):
                 view.forget_erased()
         for view in self.views:
-            self._build(view, current)
-            view.ready = True
+            self._build_or_set_aside(view, current)
+        self._told_errors()
         return current
 
     def _advance(self, through: int) -> None:

@@ -145,6 +145,10 @@ class WritePath:
         """The views' keeper is retrying an error (a store away, a view's storage failing)."""
         return self.keeper.last_error is not None
 
+    def views_error(self) -> str | None:
+        """The error the views' keeper is retrying, if it is (what keeps them behind the store)."""
+        return self.keeper.last_error
+
     def building_views(self) -> list[str]:
         """The views being built while the store holds entries they miss (see `ViewKeeper.building`)."""
         return self.keeper.building(self.applier.applied)
