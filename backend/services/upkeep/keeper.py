@@ -171,7 +171,7 @@ class ViewKeeper:
         self._queued_lock = threading.Lock()
         self._thread: threading.Thread | None = None
         self._stopping = threading.Event()  # ends retry waits too: a store that never returns must not hold shutdown
-        self.last_error: str | None = None
+        self.outage: str | None = None  # the error of the store or state being retried (all views wait)
         self._set_aside: dict[str, str] = {}  # view → the error its last build failed with (keeper's thread)
         self._retry_at = 0.0  # when the views set aside are built again (time.monotonic())
         self.cursor = Cursor()  # the journal entry every view is current through
@@ -273,9 +273,10 @@ class ViewKeeper:
         while True:
             try:
                 self._prepare_all()
+                self.outage = None
                 break
             except OUTAGES as error:
-                self.last_error = str(error)
+                self.outage = str(error)
                 logger.warning("building the views failed (%s); retrying", error)
             if self._stopping.wait(2):
                 return
@@ -360,7 +361,7 @@ class ViewKeeper:
         try:
             return applied_steps(self.journal.entries_after(self.through, min(behind, BATCH_STEPS)))
         except OUTAGES as error:  # read again at the next turn
-            self.last_error = str(error)
+            self.outage = str(error)
             return []
 
     def _read_back(self, before: int) -> list[Applied]:
@@ -377,16 +378,15 @@ class ViewKeeper:
         while True:
             try:
                 self._process(applied)
-                self._told_errors()
+                self.outage = None
                 return True
             except OUTAGES as error:
-                self.last_error = str(error)
+                self.outage = str(error)
                 logger.warning("keeping the views current failed (%s); retrying", error)
                 if self._stopping.wait(1):
                     return False
-            except Exception as error:
+            except Exception:
                 logger.exception("keeping the views current failed; building them again")
-                self.last_error = f"{type(error).__name__}: {error}"
                 last = applied[-1]
                 through = last.last if isinstance(last, _Unread) else last.entries[-1].sequence
                 try:
@@ -395,12 +395,12 @@ class ViewKeeper:
                     for view in self.views:
                         self._build_or_set_aside(view, through)
                 except OUTAGES as outage:  # the thread lives on: the batch is tried again
-                    self.last_error = str(outage)
+                    self.outage = str(outage)
                     logger.warning("building the views again failed (%s); retrying", outage)
                     if self._stopping.wait(1):
                         return False
                     continue
-                self._told_errors()
+                self.outage = None
                 self._advance(through)
                 return True
 
@@ -408,9 +408,9 @@ class ViewKeeper:
         try:
             stored = [view.follow() for view in self.views]
         except Exception as error:  # e.g. the leader is building a view of another version just now
-            self.last_error = str(error)
+            self.outage = str(error)
             return
-        self.last_error = None
+        self.outage = None
         for view, through in zip(self.views, stored, strict=True):
             view.ready = through is not None
         known = [through for through in stored if through is not None]
@@ -437,7 +437,6 @@ class ViewKeeper:
                 continue
             view.prepared()
             view.ready = True
-        self._told_errors()
         self._advance(current)
 
     def _set_view_aside(self, view: KeptView, error: Exception) -> None:
@@ -471,11 +470,12 @@ class ViewKeeper:
             except OUTAGES as outage:  # the store away: the next turn tries again
                 self._set_aside[view.name] = f"{view.name}: {outage}"
                 self._retry_at = time.monotonic() + RETRY_BUILD_SECONDS
-        self._told_errors()
 
-    def _told_errors(self) -> None:
-        """What readiness tells as the views' error: why the views set aside are not built (None when none is)."""
-        self.last_error = "; ".join(self._set_aside.values()) or None
+    @property
+    def last_error(self) -> str | None:
+        """What readiness tells as the views' error: the outage retried, else why the views set aside are not
+        built (None when neither)."""
+        return self.outage or "; ".join(self._set_aside.values()) or None
 
     def _prepare(self, view: KeptView, current: int) -> None:
         stored = view.stored_through()
@@ -576,7 +576,6 @@ class ViewKeeper:
                 view.forget_erased()
         for view in self.views:
             self._build_or_set_aside(view, current)
-        self._told_errors()
         return current
 
     def _advance(self, through: int) -> None:

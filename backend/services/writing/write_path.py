@@ -142,11 +142,12 @@ class WritePath:
         return self.keeper.lag(self.applier.applied)[1]
 
     def views_failing(self) -> bool:
-        """The views' keeper is retrying an error (a store away, a view's storage failing)."""
-        return self.keeper.last_error is not None
+        """The views' keeper is retrying an outage (a store away, the views' storage failing): every view waits
+        (not so for a view set aside, built again while the others are kept current)."""
+        return self.keeper.outage is not None
 
     def views_error(self) -> str | None:
-        """The error the views' keeper is retrying, if it is (what keeps them behind the store)."""
+        """The error the views' keeper is retrying, if it is: an outage, or why views set aside are not built."""
         return self.keeper.last_error
 
     def building_views(self) -> list[str]:
