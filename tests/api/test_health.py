@@ -11,7 +11,7 @@ import httpx
 import pytest
 
 from segb_server.backend.api.app import create_app
-from segb_server.backend.store.base import QueryResult, StoreRejectedQuery
+from segb_server.backend.store.base import QueryResult, StoreRejectedQuery, StoreUnavailable
 from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.conftest import make_settings, virtuoso_store
 from tests.support.in_process import InProcess, Server, http
@@ -100,22 +100,38 @@ def test_health_keeps_answering_while_a_large_ingest_runs(tmp_path: Path) -> Non
 
 
 class RefusingStore(OxigraphStore):
-    """The embedded store refusing the emotion-timeline report's query while `refusing` is set, as a store may
-    refuse one query (too costly, a limit of its own) and answer every other."""
+    """The embedded store failing the emotion-timeline report's query with `error` while `refusing` is set, as
+    a store may refuse one query (too costly, a limit of its own) or let it run past the wait for its answer,
+    and answer every other (its pings included)."""
 
     refusing = True
 
+    def __init__(self, path: Path, error: Exception) -> None:
+        super().__init__("http://amor-segb/events", path)
+        self.error = error
+
     def query(self, sparql: str, bindings: Any = None, timeout: float | None = None) -> QueryResult:
         if self.refusing and "targetKind" in sparql and "param_threshold" in sparql:
-            raise StoreRejectedQuery("the store refused the emotion timeline's query")
+            raise self.error
         return super().query(sparql, bindings, timeout)
 
 
-def test_readiness_tells_why_a_view_stays_behind_and_the_views_after_it_are_built(tmp_path: Path) -> None:
-    """A view whose query the store refuses neither stops the views built after it nor goes unexplained:
-    readiness names it as still being built with the error retried (`views_error`), the other reports are
-    served from their rows, and once the store answers everything is built and readiness is exact again."""
-    store = RefusingStore("http://amor-segb/events", tmp_path / "store")
+@pytest.mark.parametrize(
+    "error",
+    [
+        StoreRejectedQuery("the store refused the emotion timeline's query"),
+        StoreUnavailable("the store did not answer the emotion timeline's query in time: ReadTimeout"),
+    ],
+    ids=["refused", "timed-out"],
+)
+def test_readiness_tells_why_a_view_stays_behind_and_the_views_after_it_are_built(
+    tmp_path: Path, error: Exception
+) -> None:
+    """A view whose query the store refuses, or does not answer in time while it answers pings, neither stops
+    the views built after it nor goes unexplained: readiness names it as still being built with the error
+    retried (`views_error`), the other reports are kept current in their rows, and once the store answers
+    everything is built and readiness is exact again."""
+    store = RefusingStore(tmp_path / "store", error)
     with InProcess(create_app(make_settings(store="oxigraph", data_dir=tmp_path / "data"), store=store)) as server:
         posted = server.post(
             "/ttl", json={"ttl_content": (FIXTURES / "sample_two_robots.ttl").read_text(), "user": "r"}
@@ -128,7 +144,7 @@ def test_readiness_tells_why_a_view_stays_behind_and_the_views_after_it_are_buil
             assert time.monotonic() < deadline, body
             time.sleep(0.05)
         assert body["ready"] is True
-        assert "reports/emotion-timeline" in body["views_error"] and "refused" in body["views_error"]
+        assert body["views_error"] == f"reports/emotion-timeline: {error}"
         late = (
             f'<{EX_LATE}robot> a <http://kb.openrobots.org#Robot> ; <http://schema.org/name> "Late robot" .\n'
             f"<{EX_LATE}human> a <http://kb.openrobots.org#Human> .\n"

@@ -430,14 +430,27 @@ class ViewKeeper:
                 continue  # prepared by an earlier try, which the store's outage ended
             try:
                 self._prepare(view, current)
-            except (StoreUnavailable, StateUnavailable):
-                raise  # away for every view: tried again as a whole
-            except Exception as error:  # this view's own: its query refused, a bug
-                self._set_view_aside(view, error)
+            except Exception as error:  # this view's own (its query refused or too slow, a bug), or an outage
+                self._set_aside_unless_away(view, error)
                 continue
             view.prepared()
             view.ready = True
         self._advance(current)
+
+    def _set_aside_unless_away(self, view: KeptView, error: Exception) -> None:
+        """Set `view` aside for `error`, or raise it when the store or the views' storage is away (every view
+        waits for them, tried again as a whole). A store that answers a ping was not away: the view's query
+        failed on its own (e.g. it ran past the store's time limit)."""
+        if isinstance(error, StateUnavailable) or (isinstance(error, StoreUnavailable) and not self._store_answers()):
+            raise error
+        self._set_view_aside(view, error)
+
+    def _store_answers(self) -> bool:
+        try:
+            self.store.ping()
+        except Exception:
+            return False
+        return True
 
     def _set_view_aside(self, view: KeptView, error: Exception) -> None:
         if isinstance(error, OUTAGES):
@@ -453,10 +466,8 @@ class ViewKeeper:
         own."""
         try:
             self._build(view, through)
-        except (StoreUnavailable, StateUnavailable):
-            raise
         except Exception as error:
-            self._set_view_aside(view, error)
+            self._set_aside_unless_away(view, error)
             return
         self._set_aside.pop(view.name, None)
         view.prepared()
