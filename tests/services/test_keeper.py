@@ -19,6 +19,7 @@ from segb_server.backend.services.upkeep.keeper import (
 )
 from segb_server.backend.services.writing.applier import Applied, quads_of
 from segb_server.backend.services.writing.journal import Journal, JournalEntry
+from segb_server.backend.state.database import StateUnavailable
 from segb_server.backend.state.sqlite import SqliteDatabase
 from segb_server.backend.store.oxigraph import OxigraphStore
 
@@ -254,5 +255,37 @@ def test_a_view_whose_rebuild_after_a_failed_update_fails_is_set_aside_and_built
             assert time.monotonic() < deadline, keeper.last_error
             time.sleep(0.01)
         assert view.built == [0, 1] and view.failures == 0 and view.ready and keeper.last_error is None
+    finally:
+        keeper.stop()
+
+
+class AwayOnce(FailingBuild):
+    """A view whose first build finds the views' storage away (an outage: every view waits, tried again)."""
+
+    def build(self, through: int) -> None:
+        if self.failures:
+            self.failures -= 1
+            raise StateUnavailable("the views' storage is away")
+        RecordingView.build(self, through)
+
+
+def test_a_view_set_aside_and_built_when_an_outage_has_every_view_tried_again_is_kept_current(tmp_path: Path) -> None:
+    """A view set aside at start and built at the next try (an outage of another view's storage had them all
+    tried again) is kept current like the others from then on, and no error is told any more."""
+    store = OxigraphStore("urn:x:graph")
+    store.apply([Quad(NamedNode("urn:x:s"), NamedNode("urn:x:p"), NamedNode("urn:x:o"), DefaultGraph())], through=3)
+    failing, away = FailingBuild("failing", failures=1), AwayOnce("away", failures=1)
+    keeper = ViewKeeper(store, Journal(SqliteDatabase(tmp_path / "journal.sqlite3")), [failing, away])
+    keeper.start()
+    try:
+        deadline = time.monotonic() + 4 * RETRY_BUILD_SECONDS
+        while not (failing.ready and away.ready):
+            assert time.monotonic() < deadline, keeper.last_error
+            time.sleep(0.01)
+        assert keeper.last_error is None and keeper.building(applied=3) == []
+        keeper.on_applied(step(4))
+        failing.wait_for_updates(1)
+        assert keeper.wait_for(4, timeout=10)
+        assert failing.built == [3] and away.built == [3]  # built once: put back, not built again as set aside
     finally:
         keeper.stop()

@@ -172,7 +172,9 @@ class ViewKeeper:
         self._thread: threading.Thread | None = None
         self._stopping = threading.Event()  # ends retry waits too: a store that never returns must not hold shutdown
         self.outage: str | None = None  # the error of the store or state being retried (all views wait)
-        self._set_aside: dict[str, str] = {}  # view → the error its last build failed with (keeper's thread)
+        # view → the error its last build failed with. Written by the keeper's thread, read by requests (readiness):
+        # replaced, never changed in place, so a reader always holds a whole one.
+        self._set_aside: dict[str, str] = {}
         self._retry_at = 0.0  # when the views set aside are built again (time.monotonic())
         self.cursor = Cursor()  # the journal entry every view is current through
         self._spent = {view.name: ViewTime() for view in views}  # written by the keeper's thread only
@@ -419,9 +421,9 @@ class ViewKeeper:
 
     def _prepare_all(self) -> None:
         """Build each view never built (or of another version) and catch up the others, through the entry the
-        store holds now. A view failing on its own (a bug, its query refused) is left unready and the next ones
-        prepared all the same (raising ViewsNotBuilt at the end, to be tried again): a dead views' thread or one
-        view holding the others back would leave every report behind for good. A store away stops them all."""
+        store holds now. A view failing on its own (a bug, its query refused) is set aside, built again later,
+        and the next ones prepared all the same: a dead views' thread or one view holding the others back would
+        leave every report behind for good. A store away stops them all (tried again as a whole)."""
         current = self.store.applied_through() or 0
         if self.seen_terms is not None:
             self._prepare_seen_terms(self.seen_terms, current)
@@ -433,8 +435,7 @@ class ViewKeeper:
             except Exception as error:  # this view's own (its query refused or too slow, a bug), or an outage
                 self._set_aside_unless_away(view, error)
                 continue
-            view.prepared()
-            view.ready = True
+            self._put_back(view)
         self._advance(current)
 
     def _set_aside_unless_away(self, view: KeptView, error: Exception) -> None:
@@ -458,8 +459,15 @@ class ViewKeeper:
         else:
             logger.exception("building view %s failed; trying again in %g s", view.name, RETRY_BUILD_SECONDS)
         view.ready = False
-        self._set_aside[view.name] = f"{view.name}: {error}"
+        self._set_aside = {**self._set_aside, view.name: f"{view.name}: {error}"}
         self._retry_at = time.monotonic() + RETRY_BUILD_SECONDS
+
+    def _put_back(self, view: KeptView) -> None:
+        """`view` is built or caught up: it answers from now on (and is no longer set aside)."""
+        if view.name in self._set_aside:
+            self._set_aside = {name: error for name, error in self._set_aside.items() if name != view.name}
+        view.prepared()
+        view.ready = True
 
     def _build_or_set_aside(self, view: KeptView, through: int) -> None:
         """Build `view` through `through` (raising the store's outage), or set it aside when it fails on its
@@ -469,9 +477,7 @@ class ViewKeeper:
         except Exception as error:
             self._set_aside_unless_away(view, error)
             return
-        self._set_aside.pop(view.name, None)
-        view.prepared()
-        view.ready = True
+        self._put_back(view)
 
     def _build_set_aside(self) -> None:
         """Build again, through where the others are, the views whose build failed."""
@@ -479,14 +485,14 @@ class ViewKeeper:
             try:
                 self._build_or_set_aside(view, self.through)
             except OUTAGES as outage:  # the store away: the next turn tries again
-                self._set_aside[view.name] = f"{view.name}: {outage}"
+                self._set_aside = {**self._set_aside, view.name: f"{view.name}: {outage}"}
                 self._retry_at = time.monotonic() + RETRY_BUILD_SECONDS
 
     @property
     def last_error(self) -> str | None:
         """What readiness tells as the views' error: the outage retried, else why the views set aside are not
         built (None when neither)."""
-        return self.outage or "; ".join(self._set_aside.values()) or None
+        return self.outage or "; ".join(self._set_aside.values()) or None  # one dict read: a whole one
 
     def _prepare(self, view: KeptView, current: int) -> None:
         stored = view.stored_through()
