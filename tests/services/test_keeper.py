@@ -70,6 +70,13 @@ class RecordingView:
             assert self.updated.wait_for(lambda: len(self.updates) >= count, timeout=10)
 
 
+def store_through_3() -> OxigraphStore:
+    """A store holding one triple, applied through journal entry 3."""
+    store = OxigraphStore("urn:x:graph")
+    store.apply([Quad(NamedNode("urn:x:s"), NamedNode("urn:x:p"), NamedNode("urn:x:o"), DefaultGraph())], through=3)
+    return store
+
+
 def step(sequence: int) -> Applied:
     return Applied([JournalEntry(sequence, "post", b"")], [], cleared=False)
 
@@ -99,8 +106,7 @@ def test_a_rest_is_cut_short_for_a_step_that_waited_through_a_slow_batch_and_kep
 
 
 def test_a_view_whose_catch_up_fails_is_built_again_and_the_others_are_kept(tmp_path: Path) -> None:
-    store = OxigraphStore("urn:x:graph")
-    store.apply([Quad(NamedNode("urn:x:s"), NamedNode("urn:x:p"), NamedNode("urn:x:o"), DefaultGraph())], through=3)
+    store = store_through_3()
     broken, kept = RecordingView("broken", failing=True), RecordingView("kept")
     projector = ViewKeeper(store, Journal(SqliteDatabase(tmp_path / "journal.sqlite3")), [broken, kept])
     projector.start()
@@ -215,8 +221,7 @@ def test_a_view_whose_build_fails_is_set_aside_the_others_kept_current_and_it_is
     """A build failing on its own (a bug, its query refused) must neither end the views' thread nor hold the
     other views back (every report would stay behind for good): they are built and kept current, the failing
     one is built again every RETRY_BUILD_SECONDS, and meanwhile the error is what readiness tells."""
-    store = OxigraphStore("urn:x:graph")
-    store.apply([Quad(NamedNode("urn:x:s"), NamedNode("urn:x:p"), NamedNode("urn:x:o"), DefaultGraph())], through=3)
+    store = store_through_3()
     failing, after = FailingBuild("failing", failures=2), FailingBuild("after", failures=0)
     keeper = ViewKeeper(store, Journal(SqliteDatabase(tmp_path / "journal.sqlite3")), [failing, after])
     keeper.start()
@@ -272,8 +277,7 @@ class AwayOnce(FailingBuild):
 def test_a_view_set_aside_and_built_when_an_outage_has_every_view_tried_again_is_kept_current(tmp_path: Path) -> None:
     """A view set aside at start and built at the next try (an outage of another view's storage had them all
     tried again) is kept current like the others from then on, and no error is told any more."""
-    store = OxigraphStore("urn:x:graph")
-    store.apply([Quad(NamedNode("urn:x:s"), NamedNode("urn:x:p"), NamedNode("urn:x:o"), DefaultGraph())], through=3)
+    store = store_through_3()
     failing, away = FailingBuild("failing", failures=1), AwayOnce("away", failures=1)
     keeper = ViewKeeper(store, Journal(SqliteDatabase(tmp_path / "journal.sqlite3")), [failing, away])
     keeper.start()
