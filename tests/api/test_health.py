@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import shutil
 import threading
 import time
+import uuid
 from pathlib import Path
 from typing import Any
 
@@ -11,15 +13,27 @@ import httpx
 import pytest
 
 from segb_server.backend.api.app import create_app
+from segb_server.backend.config import PACKAGE_ROOT
 from segb_server.backend.store.base import QueryResult, StoreRejectedQuery, StoreUnavailable
 from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.conftest import make_settings, virtuoso_store
 from tests.support.in_process import InProcess, Server, http
+from tests.support.live_server import LiveServer
 from tests.support.settle import settle
 from tests.support.virtuoso import VirtuosoProcess
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures"
 EX_LATE = "https://example.org/late/"
+# A robot and a person it heard, posted once a view is set aside: a new row of the participants report.
+LATE_PARTICIPANT = (
+    f'<{EX_LATE}robot> a <http://kb.openrobots.org#Robot> ; <http://schema.org/name> "Late robot" .\n'
+    f"<{EX_LATE}human> a <http://kb.openrobots.org#Human> .\n"
+    f"<{EX_LATE}message> <http://www.w3.org/ns/prov#wasGeneratedBy> <{EX_LATE}heard> ;\n"
+    f"    <http://schema.org/sender> <{EX_LATE}human> .\n"
+    f"<{EX_LATE}heard> <http://www.gsi.upm.es/ontologies/segb/ns#wasPerformedBy> <{EX_LATE}robot> ;\n"
+    '    <http://www.w3.org/ns/prov#startedAtTime> "2026-03-10T10:00:00Z"'
+    "^^<http://www.w3.org/2001/XMLSchema#dateTime> ."
+)
 
 
 def test_live_and_ready_on_the_embedded_store(tmp_path: Path) -> None:
@@ -99,6 +113,26 @@ def test_health_keeps_answering_while_a_large_ingest_runs(tmp_path: Path) -> Non
     store.close()
 
 
+def ready_with_only_set_aside(client: httpx.Client, view: str, timeout: float = 60) -> dict[str, Any]:
+    """Readiness once every view but `view` is built and current (`view` set aside, its error told)."""
+    deadline = time.monotonic() + timeout
+    while (body := client.get("/healthz/ready").json()).get("views_building") != [view] or "reports_lag" in body:
+        assert time.monotonic() < deadline, body
+        time.sleep(0.05)
+    assert body["ready"] is True and "views_error" in body, body
+    return body
+
+
+def rows_with(client: httpx.Client, path: str, text: str, timeout: float = 60) -> dict[str, Any]:
+    """The first page of report `path` once it holds `text`."""
+    deadline = time.monotonic() + timeout
+    while text not in (page := client.get(path)).text:
+        assert time.monotonic() < deadline, page.text
+        time.sleep(0.05)
+    answer: dict[str, Any] = page.json()
+    return answer
+
+
 class RefusingStore(OxigraphStore):
     """The embedded store failing the emotion-timeline report's query with `error` while `refusing` is set, as
     a store may refuse one query (too costly, a limit of its own) or let it run past the wait for its answer,
@@ -137,32 +171,60 @@ def test_readiness_tells_why_a_view_stays_behind_and_the_views_after_it_are_buil
             "/ttl", json={"ttl_content": (FIXTURES / "sample_two_robots.ttl").read_text(), "user": "r"}
         )
         assert posted.status_code == 201, posted.text
-        deadline = time.monotonic() + 30
-        while (body := server.get("/healthz/ready").json()).get("views_building") != ["reports/emotion-timeline"] or (
-            "reports_lag" in body  # the other views built, and current
-        ):
-            assert time.monotonic() < deadline, body
-            time.sleep(0.05)
-        assert body["ready"] is True
+        body = ready_with_only_set_aside(server.client, "reports/emotion-timeline")
         assert body["views_error"] == f"reports/emotion-timeline: {error}"
-        late = (
-            f'<{EX_LATE}robot> a <http://kb.openrobots.org#Robot> ; <http://schema.org/name> "Late robot" .\n'
-            f"<{EX_LATE}human> a <http://kb.openrobots.org#Human> .\n"
-            f"<{EX_LATE}message> <http://www.w3.org/ns/prov#wasGeneratedBy> <{EX_LATE}heard> ;\n"
-            f"    <http://schema.org/sender> <{EX_LATE}human> .\n"
-            f"<{EX_LATE}heard> <http://www.gsi.upm.es/ontologies/segb/ns#wasPerformedBy> <{EX_LATE}robot> ;\n"
-            '    <http://www.w3.org/ns/prov#startedAtTime> "2026-03-10T10:00:00Z"'
-            "^^<http://www.w3.org/2001/XMLSchema#dateTime> ."
-        )
-        assert server.post("/ttl", json={"ttl_content": late, "user": "r"}).status_code == 201
-        deadline = time.monotonic() + 30
-        while "Late robot" not in (page := server.get("/reports/participants")).text:  # kept by its rows
-            assert time.monotonic() < deadline, page.text
-            time.sleep(0.05)
-        assert page.json()["served_from"] == "rows"
+        assert server.post("/ttl", json={"ttl_content": LATE_PARTICIPANT, "user": "r"}).status_code == 201
+        assert rows_with(server.client, "/reports/participants", "Late robot")["served_from"] == "rows"
         store.refusing = False
         settle(server.client)
         ready = server.get("/healthz/ready")
         assert (ready.status_code, ready.text) == (200, '{"ready": true, "oxigraph": true}')
         assert server.get("/reports/emotion-timeline", params={"limit": 1}).json()["served_from"] == "rows"
     store.close()
+
+
+# A report Virtuoso 7 cannot answer once a robot's name is not a time: SPARQL makes a failed cast unbound (the
+# embedded store does), Virtuoso fails the whole query ("Cannot convert ... to datetime").
+NAME_AS_TIME_REPORT = """# title: Robots' names as times
+# key: ?robot
+# description: Every robot and its name read as a time (none for a name that is not one).
+PREFIX xsd: <http://www.w3.org/2001/XMLSchema#>
+PREFIX schema: <http://schema.org/>
+PREFIX oro: <http://kb.openrobots.org#>
+SELECT ?robot ?name ?time WHERE { ?robot a oro:Robot ; schema:name ?name . BIND (xsd:dateTime(?name) AS ?time) }
+ORDER BY ?robot
+"""
+
+
+@pytest.mark.virtuoso
+def test_a_report_virtuoso_refuses_is_set_aside_and_told_while_the_others_are_kept(
+    virtuoso: VirtuosoProcess, tmp_path: Path
+) -> None:
+    """On a real Virtuoso, a report added by an operator whose query Virtuoso refuses is the only view not built
+    at the next start: readiness names it with Virtuoso's own error, and the other reports are kept current."""
+    graph = f"http://amor-segb/test/{uuid.uuid4().hex}"
+    sparql = tmp_path / "sparql"
+    shutil.copytree(PACKAGE_ROOT / "sparql", sparql)
+    data = tmp_path / "data"
+    with LiveServer(
+        create_app(make_settings(store="virtuoso", data_dir=data), store=virtuoso_store(virtuoso, graph))
+    ) as live:
+        posted = live.client.post(
+            "/ttl", json={"ttl_content": (FIXTURES / "sample_two_robots.ttl").read_text(), "user": "r"}
+        )
+        assert posted.status_code == 201, posted.text
+        settle(live.client)
+    (sparql / "reports" / "robot-name-times.rq").write_text(NAME_AS_TIME_REPORT)
+    store = virtuoso_store(virtuoso, graph)
+    settings = make_settings(store="virtuoso", data_dir=data, sparql_dir=sparql)
+    try:
+        with LiveServer(create_app(settings, store=store)) as live:
+            body = ready_with_only_set_aside(live.client, "reports/robot-name-times")
+            assert body["views_error"].startswith("reports/robot-name-times: "), body
+            assert "Cannot convert" in body["views_error"], body
+            assert live.client.post("/ttl", json={"ttl_content": LATE_PARTICIPANT, "user": "r"}).status_code == 201
+            assert rows_with(live.client, "/reports/participants", "Late robot")["served_from"] == "rows"
+            assert ready_with_only_set_aside(live.client, "reports/robot-name-times") == body
+    finally:
+        store.clear()
+        store.close()
