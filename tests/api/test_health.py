@@ -5,7 +5,6 @@ from __future__ import annotations
 import shutil
 import threading
 import time
-import uuid
 from pathlib import Path
 from typing import Any
 
@@ -19,7 +18,7 @@ from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.conftest import make_settings, virtuoso_store
 from tests.support.in_process import InProcess, Server, http
 from tests.support.live_server import LiveServer
-from tests.support.settle import settle
+from tests.support.settle import kept_rows, settle
 from tests.support.virtuoso import VirtuosoProcess
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures"
@@ -158,19 +157,22 @@ class RefusingStore(OxigraphStore):
     ],
     ids=["refused", "timed-out"],
 )
+@pytest.mark.parametrize("when", ["built", "kept"])
 def test_readiness_tells_why_a_view_stays_behind_and_the_views_after_it_are_built(
-    tmp_path: Path, error: Exception
+    tmp_path: Path, error: Exception, when: str
 ) -> None:
-    """A view whose query the store refuses, or does not answer in time while it answers pings, neither stops
-    the views built after it nor goes unexplained: readiness names it as still being built with the error
+    """A view whose query the store refuses, or does not answer in time while it answers pings — as the view is
+    built at start, or once kept, as a post reaches its rows — neither holds the other views back nor goes
+    unexplained: readiness names it as still being built with the error
     retried (`views_error`), the other reports are kept current in their rows, and once the store answers
     everything is built and readiness is exact again."""
     store = RefusingStore(tmp_path / "store", error)
+    store.refusing = when == "built"  # as the view is built at start, or once kept, as a post reaches its rows
     with InProcess(create_app(make_settings(store="oxigraph", data_dir=tmp_path / "data"), store=store)) as server:
-        posted = server.post(
-            "/ttl", json={"ttl_content": (FIXTURES / "sample_two_robots.ttl").read_text(), "user": "r"}
-        )
-        assert posted.status_code == 201, posted.text
+        if when == "kept":
+            kept_rows(server.client, "emotion-timeline")
+            store.refusing = True
+        post_two_robots(server.client)
         body = ready_with_only_set_aside(server.client, "reports/emotion-timeline")
         assert body["views_error"] == f"reports/emotion-timeline: {error}"
         assert server.post("/ttl", json={"ttl_content": LATE_PARTICIPANT, "user": "r"}).status_code == 201
@@ -200,24 +202,20 @@ ORDER BY ?robot
 def test_a_report_virtuoso_refuses_is_set_aside_and_told_while_the_others_are_kept(
     virtuoso: VirtuosoProcess, tmp_path: Path
 ) -> None:
-    """On a real Virtuoso, a report added by an operator whose query Virtuoso refuses is the only view not built
-    at the next start: readiness names it with Virtuoso's own error, and the other reports are kept current."""
-    graph = f"http://amor-segb/test/{uuid.uuid4().hex}"
+    """On a real Virtuoso, a report an operator adds to a store holding robots, whose query Virtuoso refuses, is
+    the only view not built at the next start: readiness names it with Virtuoso's own error, and the other
+    reports are kept current."""
     sparql = tmp_path / "sparql"
     shutil.copytree(PACKAGE_ROOT / "sparql", sparql)
-    data = tmp_path / "data"
-    with LiveServer(
-        create_app(make_settings(store="virtuoso", data_dir=data), store=virtuoso_store(virtuoso, graph))
-    ) as live:
-        posted = live.client.post(
-            "/ttl", json={"ttl_content": (FIXTURES / "sample_two_robots.ttl").read_text(), "user": "r"}
-        )
-        assert posted.status_code == 201, posted.text
-        settle(live.client)
-    (sparql / "reports" / "robot-name-times.rq").write_text(NAME_AS_TIME_REPORT)
-    store = virtuoso_store(virtuoso, graph)
-    settings = make_settings(store="virtuoso", data_dir=data, sparql_dir=sparql)
+    report = sparql / "reports" / "robot-name-times.rq"
+    store = virtuoso_store(virtuoso)
+    settings = make_settings(store="virtuoso", data_dir=tmp_path / "data", sparql_dir=sparql)
     try:
+        # Posted by a server without the report, which the next start adds.
+        with LiveServer(create_app(settings, store=virtuoso_store(virtuoso, store.graph_uri))) as live:
+            post_two_robots(live.client)
+            settle(live.client)
+        report.write_text(NAME_AS_TIME_REPORT)
         with LiveServer(create_app(settings, store=store)) as live:
             body = ready_with_only_set_aside(live.client, "reports/robot-name-times")
             assert body["views_error"].startswith("reports/robot-name-times: "), body
@@ -228,3 +226,8 @@ def test_a_report_virtuoso_refuses_is_set_aside_and_told_while_the_others_are_ke
     finally:
         store.clear()
         store.close()
+
+
+def post_two_robots(client: httpx.Client) -> None:
+    posted = client.post("/ttl", json={"ttl_content": (FIXTURES / "sample_two_robots.ttl").read_text(), "user": "r"})
+    assert posted.status_code == 201, posted.text

@@ -438,7 +438,7 @@ class ViewKeeper:
             self._put_back(view)
         self._advance(current)
 
-    def _set_aside_unless_away(self, view: KeptView, error: Exception) -> None:
+    def _set_aside_unless_away(self, view: KeptView, error: BaseException) -> None:
         """Set `view` aside for `error`, or raise it when the store or the views' storage is away (every view
         waits for them, tried again as a whole). A store that answers a ping was not away: the view's query
         failed on its own (e.g. it ran past the store's time limit)."""
@@ -453,11 +453,13 @@ class ViewKeeper:
             return False
         return True
 
-    def _set_view_aside(self, view: KeptView, error: Exception) -> None:
+    def _set_view_aside(self, view: KeptView, error: BaseException) -> None:
         if isinstance(error, OUTAGES):
-            logger.warning("building view %s failed (%s); trying again in %g s", view.name, error, RETRY_BUILD_SECONDS)
+            logger.warning("view %s failed (%s); set aside, built again in %g s", view.name, error, RETRY_BUILD_SECONDS)
         else:
-            logger.exception("building view %s failed; trying again in %g s", view.name, RETRY_BUILD_SECONDS)
+            logger.error(
+                "view %s failed; set aside, built again in %g s", view.name, RETRY_BUILD_SECONDS, exc_info=error
+            )
         view.ready = False
         self._set_aside = {**self._set_aside, view.name: f"{view.name}: {error}"}
         self._retry_at = time.monotonic() + RETRY_BUILD_SECONDS
@@ -563,10 +565,15 @@ class ViewKeeper:
         began = time.perf_counter()
         kept = [view for view in self.views if view.name not in self._set_aside]  # those are built again instead
         updates = [self._workers.submit(_timed, view.update, delta, through) for view in kept]
-        for update in updates:  # every one finishes before an error is raised: a retry starts from a quiet state
-            update.exception()
+        # Every one finishes before an error is raised: a retry starts from a quiet state. A view failing on its
+        # own (its query refused, a bug) is set aside and built again later; the store away has the batch retried.
+        failures = [(view, error) for view, update in zip(kept, updates, strict=True) if (error := update.exception())]
+        for view, error in failures:
+            self._set_aside_unless_away(view, error)
         seconds: dict[str, float] = {}
         for view, update in zip(kept, updates, strict=True):
+            if view.name in self._set_aside:
+                continue
             wall, cpu = update.result()
             seconds[view.name] = wall
             spent = self._spent[view.name]
