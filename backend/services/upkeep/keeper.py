@@ -487,8 +487,7 @@ class ViewKeeper:
             try:
                 self._build_or_set_aside(view, self.through)
             except OUTAGES as outage:  # the store away: the next turn tries again
-                self._set_aside = {**self._set_aside, view.name: f"{view.name}: {outage}"}
-                self._retry_at = time.monotonic() + RETRY_BUILD_SECONDS
+                self._set_view_aside(view, outage)
 
     @property
     def last_error(self) -> str | None:
