@@ -16,6 +16,8 @@ from tests.support.net import free_port
 from tests.support.processes import end
 
 INSTALL_HINT = "install Debian's virtuoso-opensource-7-bin (.ci/run does)"
+LANGUAGES = ("en", "es-ES")  # the language tags the tests' data carries
+SCRATCH_GRAPH = "urn:segb:test:languages"
 
 INI = """\
 [Database]
@@ -110,11 +112,33 @@ class VirtuosoProcess:
             try:
                 response = httpx.get(f"{self.base_url}/sparql", params={"query": "ASK {}"}, timeout=1)
                 if response.status_code == 200:
+                    self._register_languages()
                     return
             except httpx.HTTPError:
                 pass
             time.sleep(0.2)
         raise RuntimeError("virtuoso-t did not start serving SPARQL within 60 s")
+
+    def _register_languages(self) -> None:
+        """Write and remove one literal of each language the tests write, once, before any test runs.
+
+        Debian's Virtuoso 7.2.5 sometimes fails every query that reads a literal of a language its database has
+        just met for the first time ("Unknown language in DB.DBA.RDF_LANGUAGE_OF_OBJ", openlink/virtuoso-opensource
+        #365) for a minute or more: a test then fails on the store's defect, not on the server's behaviour.
+        Measured on one test of this fixture's fresh databases: 2 runs of 30 failed so, none of 30 once each
+        language was met here first."""
+        literals = " ".join(f'<urn:segb:test:language> <urn:segb:test:tag> "x"@{tag} .' for tag in LANGUAGES)
+        with httpx.Client(auth=httpx.DigestAuth(self.user, self.password), timeout=30) as client:
+            for update in (
+                f"INSERT DATA {{ GRAPH <{SCRATCH_GRAPH}> {{ {literals} }} }}",
+                f"CLEAR GRAPH <{SCRATCH_GRAPH}>",
+            ):
+                response = client.post(
+                    self.endpoint,
+                    content=update.encode(),
+                    headers={"Content-Type": "application/sparql-update; charset=utf-8"},
+                )
+                response.raise_for_status()
 
     def kill(self) -> None:
         """SIGKILL, as a crash would: Virtuoso recovers from its transaction log at the next start."""
