@@ -195,13 +195,18 @@ def _slices(items: list[str], size: int) -> list[list[str] | None]:
     return [items[start : start + size] for start in range(0, len(items), size)]
 
 
+def kept_text(query: CatalogQuery, plan: ReportPlan) -> str:
+    """The query whose answer a report's rows are: for an aggregate, its rows before grouping (parameters still
+    to be left unbound)."""
+    if not plan.is_aggregate:
+        return query.text
+    inputs = dict.fromkeys([*plan.group_by, f"?{plan.unit()}", *(a.argument for a in plan.aggregates)])
+    return _before_grouping(query.text, list(inputs))
+
+
 def _projection(query: CatalogQuery, plan: ReportPlan, store: Store, rows: KeptRows) -> KeptQuery:
     unit = plan.unit()
-    if plan.is_aggregate:
-        inputs = dict.fromkeys([*plan.group_by, f"?{unit}", *(a.argument for a in plan.aggregates)])
-        text = _before_grouping(query.text, list(inputs))
-    else:
-        text = query.text
+    text = kept_text(query, plan)
     layout = Layout(f"report_{re.sub(r'[^a-z0-9]', '_', query.name.lower())}", plan, query.parameters, unit)
     # The tables' schema counts too: rows stored in another layout are built again, not read.
     fingerprint = hashlib.sha256("\n".join([PLAN_VERSION, query.text, *layout.schema()]).encode()).hexdigest()
