@@ -3,7 +3,8 @@ VALUES block of a batch's keys), and which keys share a question depends on how 
 kept query, asked for every key at once and in full, must answer for each key exactly what it answers for that
 key alone, on both stores. Virtuoso 7 did not for an OPTIONAL of a UNION of BINDs (the timeline's activity
 kinds): asked for several activities, it gave an activity the kinds of another, or none, and whether a timeline
-named an activity's kind depended on how its posts were batched."""
+named an activity's kind depended on how its posts were batched. The audit rules' SPARQL rules are kept queries
+too, and are asked the same way."""
 
 from __future__ import annotations
 
@@ -14,21 +15,25 @@ import pytest
 from pyoxigraph import Quad, RdfFormat, parse
 
 from segb_server.backend.config import PACKAGE_ROOT
+from segb_server.backend.services.rules.catalog import RuleCatalog
 from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, Catalog, CatalogQuery
 from segb_server.backend.services.upkeep.kept_queries.plan import Unsupported, plan_report
 from segb_server.backend.services.upkeep.kept_queries.projection import kept_text
 from segb_server.backend.store.base import Store, select
 from segb_server.backend.store.terms import bind_texts, bind_values, term_text
 from tests.support.investigation import incident
+from tests.support.rule_scenarios import troubled
 
 CATALOG = Catalog(PACKAGE_ROOT / "sparql")
+RULES = RuleCatalog(PACKAGE_ROOT / "rules")
 Answer = dict[str, Counter[tuple[tuple[str, str], ...]]]
 
 
 def kept_queries() -> list[tuple[CatalogQuery, str, str]]:
     """(query, its unit variable, the text its rows are the answer of, parameters unbound) for every kept query."""
     kept = []
-    for query in [*CATALOG.under("reports"), *CATALOG.under("timeline")]:
+    rules = [rule.query for rule in RULES.sparql() if rule.query is not None]
+    for query in [*CATALOG.under("reports"), *CATALOG.under("timeline"), *rules]:
         try:
             plan = plan_report(query)
         except Unsupported:
@@ -51,11 +56,14 @@ def answer(store: Store, text: str, unit: str, keys: list[str] | None = None) ->
 
 @pytest.fixture
 def incident_store(store: Store) -> Store:
-    """The store holding the incident's graph as its robots last published it."""
-    scenario = incident()
-    scenario.run_steps()
+    """The store holding the incident's graph and the troubled scenario's (one slip of each kind the audit rules
+    look for), as their robots last published them."""
+    scenarios = [incident(), troubled()[0]]
+    for scenario in scenarios:
+        scenario.run_steps()
     quads = [
         Quad(triple.subject, triple.predicate, triple.object)
+        for scenario in scenarios
         for turtle in scenario.published_turtle()
         for triple in parse(turtle, RdfFormat.TURTLE)
     ]
@@ -68,7 +76,7 @@ def test_a_kept_query_asked_for_many_keys_answers_for_each_what_it_answers_for_i
     incident_store: Store, query: CatalogQuery, unit: str, text: str
 ) -> None:
     in_full = answer(incident_store, text, unit)
-    assert in_full, "the incident gives this query rows"
+    assert in_full, "the scenarios give this query rows"
     alone = {key: rows for key in in_full for key, rows in answer(incident_store, text, unit, [key]).items()}
     assert answer(incident_store, text, unit, sorted(in_full)) == alone, "asked for every key at once"
     assert in_full == alone, "evaluated in full"
