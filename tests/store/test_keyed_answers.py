@@ -55,7 +55,7 @@ def answer(store: Store, text: str, unit: str, keys: list[str] | None = None) ->
 
 
 @pytest.fixture
-def incident_store(store: Store) -> Store:
+def scenario_store(store: Store) -> Store:
     """The store holding the incident's graph and the troubled scenario's (one slip of each kind the audit rules
     look for), as their robots last published them."""
     scenarios = [incident(), troubled()[0]]
@@ -73,10 +73,10 @@ def incident_store(store: Store) -> Store:
 
 @pytest.mark.parametrize(("query", "unit", "text"), KEPT, ids=[query.name for query, _, _ in KEPT])
 def test_a_kept_query_asked_for_many_keys_answers_for_each_what_it_answers_for_it_alone(
-    incident_store: Store, query: CatalogQuery, unit: str, text: str
+    scenario_store: Store, query: CatalogQuery, unit: str, text: str
 ) -> None:
-    in_full = answer(incident_store, text, unit)
+    in_full = answer(scenario_store, text, unit)
     assert in_full, "the scenarios give this query rows"
-    alone = {key: rows for key in in_full for key, rows in answer(incident_store, text, unit, [key]).items()}
-    assert answer(incident_store, text, unit, sorted(in_full)) == alone, "asked for every key at once"
+    alone = {key: rows for key in in_full for key, rows in answer(scenario_store, text, unit, [key]).items()}
+    assert answer(scenario_store, text, unit, sorted(in_full)) == alone, "asked for every key at once"
     assert in_full == alone, "evaluated in full"
