@@ -16,11 +16,11 @@ from pyoxigraph import Quad, RdfFormat, parse
 
 from segb_server.backend.config import PACKAGE_ROOT
 from segb_server.backend.services.rules.catalog import RuleCatalog
-from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, Catalog, CatalogQuery
+from segb_server.backend.services.sparql.catalog import Catalog, CatalogQuery
 from segb_server.backend.services.upkeep.kept_queries.plan import Unsupported, plan_report
 from segb_server.backend.services.upkeep.kept_queries.projection import kept_text
 from segb_server.backend.store.base import Store, select
-from segb_server.backend.store.terms import bind_texts, bind_values, term_text
+from segb_server.backend.store.terms import bind_texts, term_text
 from tests.support.investigation import incident
 from tests.support.rule_scenarios import troubled
 
@@ -38,8 +38,7 @@ def kept_queries() -> list[tuple[CatalogQuery, str, str]]:
             plan = plan_report(query)
         except Unsupported:
             continue  # evaluated in full on every request: never asked by keys
-        unbound = {PARAMETER_VARIABLE_PREFIX + name: None for name in query.parameters}
-        kept.append((query, plan.unit(), bind_values(kept_text(query, plan), unbound)))
+        kept.append((query, plan.unit(), kept_text(query, plan)))
     return kept
 
 

@@ -109,8 +109,7 @@ class KeptQuery:
         self.name = layout.plan.name
         self.ready = False
         plan = layout.plan
-        # The query whose answer the rows are (for an aggregate: before grouping), parameters left unbound.
-        self.text = bind_values(text, {PARAMETER_VARIABLE_PREFIX + p: None for p in layout.parameters})
+        self.text = text  # the query whose answer the rows are (`kept_text`)
         self.keys = KeyFinder(plan, unit, ignored=facet_patterns(plan))
         self.facets = [FacetPairs(plan, facet) for facet in plan.facet_filters]
         # What every row needs (the query's top-level patterns), as far as it can be joined among a batch's triples
@@ -196,12 +195,13 @@ def _slices(items: list[str], size: int) -> list[list[str] | None]:
 
 
 def kept_text(query: CatalogQuery, plan: ReportPlan) -> str:
-    """The query whose answer a report's rows are: for an aggregate, its rows before grouping (parameters still
-    to be left unbound)."""
-    if not plan.is_aggregate:
-        return query.text
-    inputs = dict.fromkeys([*plan.group_by, f"?{plan.unit()}", *(a.argument for a in plan.aggregates)])
-    return _before_grouping(query.text, list(inputs))
+    """The query whose answer a report's rows are, its parameters left unbound: for an aggregate, its rows before
+    grouping."""
+    text = query.text
+    if plan.is_aggregate:
+        inputs = dict.fromkeys([*plan.group_by, f"?{plan.unit()}", *(a.argument for a in plan.aggregates)])
+        text = _before_grouping(text, list(inputs))
+    return bind_values(text, {PARAMETER_VARIABLE_PREFIX + name: None for name in query.parameters})
 
 
 def _projection(query: CatalogQuery, plan: ReportPlan, store: Store, rows: KeptRows) -> KeptQuery:
