@@ -5,7 +5,7 @@
 
 For each size, one robot's history (the receptionist of examples/receptionist.py: a new visitor each visit, the
 robot's node gaining children with every one) is loaded into a fresh embedded store and the server's views are
-built from it. Then 30 more visits are posted one at a time through the server's own write path (journal,
+built from it. Then 60 more visits are posted one at a time through the server's own write path (journal,
 applier, views' keeper), in process, the sizes taking turns post by post. Each post is timed from the applier's
 write until every view includes it (the views' keeper in its own thread, as `bench/breakdown.py` measures it),
 and its work is counted: the store's queries and the rows they answered, and the SQLite steps of each view's
@@ -42,7 +42,7 @@ from segb_server.backend.store.factory import open_store
 from segb_server.backend.store.oxigraph import OxigraphStore
 
 SIZES = (10_000, 1_000_000, 5_000_000)
-POSTS = 30
+POSTS = 60  # per size: a median of 30 moved by up to a fifth between runs of the same code
 CUMULATIVE_VISITS = 200  # visits a cumulative re-publish sends again with its new one
 LOAD_VISITS = 20_000  # visits per bulk-loaded chunk
 STEPS_PER_TICK = 1000
