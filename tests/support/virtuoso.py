@@ -119,6 +119,12 @@ class VirtuosoProcess:
             time.sleep(0.2)
         raise RuntimeError("virtuoso-t did not start serving SPARQL within 60 s")
 
+    @property
+    def pid(self) -> int:
+        """The server's process id (the bench reads its CPU time)."""
+        assert self._process is not None, "not started"
+        return self._process.pid
+
     def _register_languages(self) -> None:
         """Write and remove one literal of each language the tests write, once, before any test runs.
 
