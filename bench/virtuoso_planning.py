@@ -32,13 +32,11 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
-from pyoxigraph import RdfFormat
-
 from bench.measure import machine
 from bench.one_robot import OneRobot, one_robot
+from bench.views_cpu import post_in_process
 from segb_server.backend.config import Settings
 from segb_server.backend.services.container import Services, build_services
-from segb_server.backend.services.ingest.payloads import RdfPayload
 from segb_server.backend.store.base import Bindings, QueryResult
 from segb_server.backend.store.virtuoso import VirtuosoStore
 from tests.support.virtuoso import VirtuosoProcess
@@ -121,14 +119,9 @@ def measure(store: _RecordingStore, pid: int, queries: list[str], visit: int, hi
     return costs
 
 
-def _post(services: Services, payload: str) -> int:
-    result = services.ingest.ingest(RdfPayload(payload.encode(), RdfFormat.N_TRIPLES, claimed_user=None), actor="bench")
-    return result.sequence
-
-
 def _log(services: Services, robot: OneRobot, start: int, end: int) -> None:
     with ThreadPoolExecutor(THREADS) as pool:
-        last = max(pool.map(lambda index: _post(services, robot.visit(index)), range(start, end)), default=0)
+        last = max(pool.map(lambda index: post_in_process(services, robot.visit(index)), range(start, end)), default=0)
     assert services.writes.wait_viewed(last, 3600), "the views did not include the last post"
 
 
@@ -148,7 +141,7 @@ def run(visits: int, more: int, repeats: int, root: Path) -> list[Cost]:
         robot = one_robot()
         costs: list[Cost] = []
         try:
-            assert services.writes.wait_viewed(_post(services, robot.first), 600), "the views were not built"
+            assert services.writes.wait_viewed(post_in_process(services, robot.first), 600), "the views were not built"
             _log(services, robot, 0, visits)
             store.recorded = []
             _log(services, robot, visits, visits + 1)  # one more visit: the views' queries for its keys
