@@ -27,9 +27,10 @@ import re
 import sys
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from itertools import islice
 from pathlib import Path
 
 from bench.measure import machine
@@ -101,10 +102,11 @@ def with_keys(text: str, visit: int, visits: list[int]) -> str:
 
 
 def measure(store: _RecordingStore, pid: int, queries: list[str], visit: int, history: int, repeats: int,
-            fresh: Callable[[int], list[int]]) -> list[Cost]:  # fmt: skip
+            unasked: Iterator[int]) -> list[Cost]:  # fmt: skip
+    """Each view's query of `visit` bound to visits taken from `unasked` (each bound once: new texts)."""
     costs = []
     for keys in KEYS:
-        batches = [fresh(keys) for _ in range(repeats)]  # a batch's keys, bound into each view's query
+        batches = [list(islice(unasked, keys)) for _ in range(repeats)]  # a batch's keys, bound into each view's query
         assert all(len(batch) == keys for batch in batches), "too few earlier visits to bind"
         texts = [with_keys(text, visit, batch) for batch in batches for text in queries]
         timed = []
@@ -148,17 +150,10 @@ def run(visits: int, more: int, repeats: int, root: Path) -> list[Cost]:
             queries = keyed_queries(store.recorded, visits)
             store.recorded = None
             assert queries, "the views asked no keyed query"
-            unasked = list(range(visits - 1, -1, -1))  # earlier visits, newest first, each bound once (new texts)
-
-            def fresh(count: int) -> list[int]:
-                taken = unasked[:count]
-                del unasked[:count]
-                return taken
-
-            costs += measure(store, virtuoso.pid, queries, visits, visits, repeats, fresh)
+            # earlier visits, newest first
+            costs += measure(store, virtuoso.pid, queries, visits, visits, repeats, iter(range(visits - 1, -1, -1)))
             _log(services, robot, visits + 1, more)
-            unasked[:] = range(more - 1, visits, -1)
-            costs += measure(store, virtuoso.pid, queries, visits, more, repeats, fresh)
+            costs += measure(store, virtuoso.pid, queries, visits, more, repeats, iter(range(more - 1, visits, -1)))
         finally:
             services.close()
             store.close()
