@@ -267,7 +267,7 @@ def keep_busy(server: Server, robot: str, activities: int) -> None:
     assert http(server, "POST", "/ttl", json={"ttl_content": busy}).status_code == 201
 
 
-def publish_message(server: Server, text: str) -> str:
+def publish_message(server: Server, text: str, token: str | None = None) -> str:
     """What ARI logs when it hears Maria say `text`, published by the robots' client; the message's IRI."""
     robot = robot_logger("ari", "ARI")
     maria = robot.register_human("maria", first_name="Maria")
@@ -276,5 +276,5 @@ def publish_message(server: Server, text: str) -> str:
     message = robot.log_message(
         text, message_id=f"live_{key}", sender=maria, language="en", generated_by_activity=heard
     )
-    publisher_for(server).publish_turtle(robot.serialize())
+    publisher_for(server, token=token).publish_turtle(robot.serialize())
     return str(message)

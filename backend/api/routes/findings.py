@@ -12,7 +12,7 @@ from fastapi.responses import Response, StreamingResponse
 
 from segb_server.backend.api.deps import Auditor, ServicesDep
 from segb_server.backend.api.responses import FastJSONResponse
-from segb_server.backend.api.routes.live import event_stream
+from segb_server.backend.api.routes.live import ENDS_WITH_THE_TOKEN, event_stream
 from segb_server.backend.services.errors import InvalidParameter
 from segb_server.backend.services.formats import TABLES, negotiate
 from segb_server.backend.services.rules.service import DEFAULT_LIMIT, FILTERS, MAX_LIMIT, FindingsPage
@@ -108,7 +108,7 @@ async def list_findings(
         'An `event: change` with `data: {"rules": [...]}` whenever findings of those rules appeared or went; its '
         "`id` is the findings' position (as `last_event_id` of `GET /findings`). Fetch the findings again on each. "
         "With a `Last-Event-ID` other than the current position, one change is sent at once. A comment every 15 s "
-        "keeps idle connections open."
+        "keeps idle connections open." + ENDS_WITH_THE_TOKEN
     ),
     response_class=StreamingResponse,
     responses={200: {"content": {"text/event-stream": {}}}},
@@ -132,7 +132,7 @@ async def findings_stream(request: Request, services: ServicesDep, principal: Au
     async def opening() -> list[bytes]:
         return []
 
-    return event_stream(request, opening, changes, findings.changed)
+    return event_stream(request, opening, changes, findings.changed, principal.expires_at)
 
 
 async def _about(services: ServicesDep, focus: list[str], others: set[str]) -> Response:

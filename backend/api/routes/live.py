@@ -25,7 +25,14 @@ router = APIRouter(tags=["reports"])
 
 POLL_SECONDS = 0.1  # how soon a reader hears of another process's change: a cheap read per open stream
 KEEP_ALIVE_SECONDS = 15.0
+# The last event of a stream whose token expired: a reader holding that token may read no more (a new request
+# with it is refused), so the stream ends rather than outliving the token.
+EXPIRED = (
+    b'event: expired\ndata: {"detail": "The token this stream was opened with expired: open it again with a new one."}'
+    b"\n\n"
+)
 MAX_EVENT_ID_DIGITS = 18
+ENDS_WITH_THE_TOKEN = " It ends with `event: expired` when the token it was opened with expires."  # every stream's
 
 
 @router.get(
@@ -37,7 +44,7 @@ MAX_EVENT_ID_DIGITS = 18
         "send it back as `Last-Event-ID` to resume. "
         "`?report=` (repeatable) limits the stream to those reports. `event: reset` when the changes since that id "
         "are no longer kept, or the id is ahead of the stream (reload). A comment every 15 s keeps idle connections "
-        "open. Reports evaluated in full on every request (see `served_from`) send no changes."
+        "open. Reports evaluated in full on every request (see `served_from`) send no changes." + ENDS_WITH_THE_TOKEN
     ),
     response_class=StreamingResponse,
     responses={200: {"content": {"text/event-stream": {}}}},
@@ -62,7 +69,7 @@ async def stream(
             events.append(feed.event("change", data, last=index == len(grouped) - 1))
         return events
 
-    return event_stream(request, feed.opening, changes, change_log.changed)
+    return event_stream(request, feed.opening, changes, change_log.changed, principal.expires_at)
 
 
 @router.get(
@@ -73,7 +80,7 @@ async def stream(
         'An `event: change` with `data: {"through": n}` whenever what `GET /graph` draws changed (new nodes, '
         "links, labels or times, or a clearing); `n`, also the event's `id`, is the journal entry the graph now "
         "includes. Fetch the view again on each. With `Last-Event-ID` older than the graph, one change is sent at "
-        "once. A comment every 15 s keeps idle connections open."
+        "once. A comment every 15 s keeps idle connections open." + ENDS_WITH_THE_TOKEN
     ),
     response_class=StreamingResponse,
     responses={200: {"content": {"text/event-stream": {}}}},
@@ -94,7 +101,7 @@ async def graph_stream(request: Request, services: ServicesDep, principal: Audit
     async def opening() -> list[bytes]:
         return []
 
-    return event_stream(request, opening, changes, index.changed)
+    return event_stream(request, opening, changes, index.changed, principal.expires_at)
 
 
 def event_id(raw: str) -> int | None:
@@ -108,9 +115,14 @@ def event_stream(
     opening: Callable[[], Awaitable[list[bytes]]],
     changes: Callable[[], Awaitable[list[bytes]]],
     changed: ChangeSignal,
+    expires_at: int | None,
 ) -> StreamingResponse:
     """An event stream: `opening`'s events, then `changes`' events, looked for whenever `changed` wakes the
-    reader (or every `POLL_SECONDS`) until the reader leaves, with a keep-alive comment when quiet."""
+    reader (or every `POLL_SECONDS`) until the reader leaves, with a keep-alive comment when quiet; it ends with
+    `EXPIRED` once `expires_at` (Unix seconds: the expiry of the token that opened it) has passed."""
+
+    def expired() -> bool:
+        return expires_at is not None and time.time() >= expires_at
 
     async def events() -> AsyncIterator[bytes]:
         for event in await opening():
@@ -118,6 +130,9 @@ def event_stream(
         yield b"retry: 2000\n\n"
         quiet_since = time.monotonic()
         while not await request.is_disconnected():
+            if expired():
+                yield EXPIRED
+                return
             found = await changes()
             for event in found:
                 yield event
@@ -127,7 +142,7 @@ def event_stream(
             elif now - quiet_since >= KEEP_ALIVE_SECONDS:
                 yield b": keep-alive\n\n"
                 quiet_since = now
-            await changed.wait(POLL_SECONDS)
+            await changed.wait(POLL_SECONDS if expires_at is None else min(POLL_SECONDS, expires_at - time.time()))
 
     headers = {"Cache-Control": "no-store", "X-Accel-Buffering": "no"}  # proxies must not buffer the stream
     return StreamingResponse(events(), media_type="text/event-stream", headers=headers)

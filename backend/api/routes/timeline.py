@@ -15,7 +15,7 @@ from fastapi.responses import Response, StreamingResponse
 
 from segb_server.backend.api.deps import Auditor, ServicesDep
 from segb_server.backend.api.responses import FastJSONResponse
-from segb_server.backend.api.routes.live import ChangeFeed, event_id, event_stream
+from segb_server.backend.api.routes.live import ENDS_WITH_THE_TOKEN, ChangeFeed, event_id, event_stream
 from segb_server.backend.services.errors import NotFound
 from segb_server.backend.services.formats import Format, negotiate
 from segb_server.backend.services.timeline.kinds import FOLDER
@@ -112,6 +112,7 @@ async def timeline(
         "none when they left it). The last event of each group of changes carries an increasing `id`: send it "
         "back as `Last-Event-ID` to resume; `event: reset` when the changes since that id are no longer kept "
         "(reload). Same filters as `GET /timeline`. A comment every 15 s keeps idle connections open."
+        + ENDS_WITH_THE_TOKEN
     ),
     response_class=StreamingResponse,
     responses={200: {"content": {"text/event-stream": {}}}},
@@ -140,7 +141,7 @@ async def timeline_stream(
             events.append(feed.event("rows", data, last=index == len(keys) - 1))
         return events
 
-    return event_stream(request, feed.opening, changes, kept.rows.changed)
+    return event_stream(request, feed.opening, changes, kept.rows.changed, principal.expires_at)
 
 
 def _document(timeline: TimelineService, window: Window, kinds: list[str], request: Request) -> Response:
