@@ -8,6 +8,7 @@ import base64
 import hashlib
 import io
 import json
+import warnings
 import zipfile
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -124,12 +125,17 @@ def resigned_by_another_key(files: Files, *, change: bool = True) -> None:
     files["manifest.sig"] = base64.b64encode(other.sign(files["manifest.json"]))
 
 
+def added_file(files: Files) -> None:
+    files["report.txt"] = b"A report that seems to come with the evidence.\n"
+
+
 TAMPERING: dict[str, tuple[Callable[[Files], None], list[str]]] = {
     "changed literal": (changed_literal, ["triples.nt was changed after signing", "covered by no receipt"]),
     "dropped triple": (dropped_triple, ["triples.nt was changed after signing", "is missing from triples.nt"]),
     "removed receipt": (removed_receipt, ["receipts.jsonl was changed after signing", "are missing: the chain jumps"]),
     "forged signature": (forged_signature, ["the signature does not match manifest.json"]),
     "re-signed by another key": (resigned_by_another_key, ["signed with another key"]),
+    "added file": (added_file, ["report.txt is not one of the files the signed manifest lists"]),
 }
 
 
@@ -142,6 +148,22 @@ def test_each_kind_of_tampering_is_caught_and_named(served: Served, tmp_path: Pa
     assert code == 1 and "NOT verified" in out
     for message in messages:
         assert message in out, out
+
+
+def test_a_file_named_twice_is_caught(served: Served, tmp_path: Path) -> None:
+    """Archive tools differ on which of two entries of one name they extract: a forged copy beside the genuine
+    one must not pass because the verifier happened to read the genuine one."""
+    files = bundle_of(served, **WINDOW)
+    bundle = tmp_path / "doubled.zip"
+    with warnings.catch_warnings(), zipfile.ZipFile(bundle, "w") as archive:
+        warnings.simplefilter("ignore", UserWarning)  # zipfile warns of the duplicate name it is asked to write
+        archive.writestr("triples.nt", files["triples.nt"].replace(ROBOT_REPLIES[0].encode(), b"FORGED"))
+        for name, data in files.items():
+            archive.writestr(name, data)
+    (tmp_path / "server.pem").write_bytes(served.key)
+    checked = segb("verify-evidence", str(bundle), "--public-key", str(tmp_path / "server.pem"))
+    assert checked.returncode == 1 and "NOT verified" in checked.stdout
+    assert "triples.nt is in the archive twice" in checked.stdout, checked.stdout
 
 
 def test_a_re_signed_bundle_passes_only_against_its_own_key(served: Served, tmp_path: Path) -> None:

@@ -38,10 +38,15 @@ def verify_bundle(path: Path, public_key_pem: bytes | None = None) -> Report:
     report = Report()
     try:
         with zipfile.ZipFile(path) as bundle:
-            files = {name: bundle.read(name) for name in bundle.namelist()}
+            names = bundle.namelist()
+            files = {name: bundle.read(name) for name in names}
     except (OSError, zipfile.BadZipFile) as error:
         report.problems.append(f"not a readable evidence bundle: {error}")
         return report
+    # Archive tools differ on which of two entries of one name they show: whichever one this check read, an
+    # investigator may open the other.
+    for name in sorted({name for name in names if names.count(name) > 1}):
+        report.problems.append(f"{name} is in the archive twice: a reader may be shown either copy")
     missing = [name for name in (layout.MANIFEST, layout.SIGNATURE, *layout.SIGNED_FILES) if name not in files]
     if missing:
         report.problems.append(f"files missing from the bundle: {', '.join(missing)}")
@@ -95,10 +100,14 @@ def _signed_manifest(files: dict[str, bytes], expected_pem: bytes | None, report
 
 
 def _check_files(files: dict[str, bytes], manifest: dict[str, Any], report: Report) -> None:
+    """Every file the bundle must hold matches the signed manifest, and the archive holds nothing else: a file
+    beside the signed ones would be read as part of the evidence without being vouched for."""
     listed = manifest.get("files", {})
     for name in layout.SIGNED_FILES:
         if hashlib.sha256(files[name]).hexdigest() != listed.get(name):
             report.problems.append(f"{name} was changed after signing (its SHA-256 is not the manifest's)")
+    for name in sorted(set(files) - {layout.MANIFEST, layout.SIGNATURE, *layout.SIGNED_FILES}):
+        report.problems.append(f"{name} is not one of the files the signed manifest lists")
 
 
 def _entries(data: bytes, what: str, report: Report) -> Iterator[dict[str, Any]]:
