@@ -51,7 +51,12 @@ def retention(args: argparse.Namespace, settings: Settings, services_of: Service
         print("segb: error: no retention is set: RETENTION_DAYS (or --days) is empty, posts are kept forever",
               file=sys.stderr)  # fmt: skip
         return 2
-    now = datetime.fromisoformat(args.as_of.replace("Z", "+00:00")) if args.as_of else None
+    try:
+        now = datetime.fromisoformat(args.as_of.replace("Z", "+00:00")) if args.as_of else None
+    except ValueError:
+        print(f"segb: error: --as-of must be an ISO 8601 time with a zone, e.g. 2027-01-01T00:00:00Z (got "
+              f"{args.as_of!r})", file=sys.stderr)  # fmt: skip
+        return 2
     if now is not None and now.tzinfo is None:
         print("segb: error: --as-of needs a time zone, e.g. 2027-01-01T00:00:00Z", file=sys.stderr)
         return 2

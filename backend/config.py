@@ -17,6 +17,8 @@ MIN_SECRET_LENGTH = 32
 # The AI Act asks deployers of high-risk AI systems (emotion recognition is one, Annex III) to keep the logs they
 # generate automatically for at least six months (Art. 19 and 26(6)).
 MIN_RETENTION_DAYS = 183
+MAX_RETENTION_DAYS = 36_525  # a century: longer is "forever" (leave RETENTION_DAYS empty), and millions of days
+# counted back from now leave the calendar
 
 
 class Settings(BaseSettings):
@@ -97,8 +99,10 @@ class Settings(BaseSettings):
     retention_days: int | None = Field(
         None,
         ge=1,
+        le=MAX_RETENTION_DAYS,
         description="Days robots' posts are kept; older posts lose their content by an erasure (receipts and "
-        "erasure records stay); empty = kept forever. At least 183 (six months) unless ALLOW_SHORT_RETENTION.",
+        "erasure records stay); empty = kept forever. At least 183 (six months) unless ALLOW_SHORT_RETENTION, at "
+        "most 36525 (a century).",
     )
     allow_short_retention: bool = Field(
         False, description="Accept RETENTION_DAYS under 183 (when the AI Act's six months do not apply)."

@@ -48,3 +48,10 @@ def test_short_secrets_are_refused_unless_explicitly_allowed() -> None:
 
 def test_skolem_base_defaults_to_the_graph_authority() -> None:
     assert make_settings().effective_skolem_base == "http://amor-segb/.well-known/genid/"
+
+
+def test_a_retention_past_the_calendar_is_refused_with_its_bound() -> None:
+    """Counting back millions of days leaves the calendar: the server would start, then fail every erasure run."""
+    with pytest.raises(ValidationError, match="less than or equal to 36525"):
+        make_settings(retention_days=3_000_000)
+    assert make_settings(retention_days=36_525).retention_days == 36_525

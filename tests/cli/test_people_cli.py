@@ -53,6 +53,23 @@ def test_retention_refuses_less_than_six_months_and_erases_what_is_older(data_di
     assert segb("export", "--data-dir", str(data_dir), "--format", "ntriples").stdout == ""
 
 
+@pytest.mark.parametrize("days", ["3000000", "99999999999"])
+def test_a_retention_past_the_calendar_is_refused_in_one_line(data_dir: Path, days: str) -> None:
+    refused = segb("retention", "--data-dir", str(data_dir), "--days", days)
+    assert refused.returncode == 2 and "Traceback" not in refused.stderr
+    assert refused.stderr.startswith("segb: error: invalid setting: retention_days: ") and "36525" in refused.stderr
+
+
+@pytest.mark.parametrize(
+    ("as_of", "said"),
+    [("0001-06-01T00:00:00Z", "nothing is past retention"), ("last tuesday", "segb: error: --as-of must be")],
+)
+def test_retention_as_of_any_time_answers_without_a_traceback(data_dir: Path, as_of: str, said: str) -> None:
+    """A time so early that counting back the days leaves the calendar: nothing is older than that."""
+    answer = segb("retention", "--data-dir", str(data_dir), "--days", "200", "--as-of", as_of)
+    assert "Traceback" not in answer.stderr and said in answer.stdout + answer.stderr
+
+
 def test_an_evidence_bundle_made_and_checked_from_the_command_line(data_dir: Path) -> None:
     bundle = data_dir / "evidence.zip"
     made = segb("evidence", "--data-dir", str(data_dir), "--since", "2020-01-01T00:00:00Z", "-o", str(bundle))

@@ -17,8 +17,13 @@ RETENTION_USER = "segb-retention"  # the ledger's `user` of retention's erasures
 
 
 def cutoff(days: int, now: datetime) -> str:
-    """The time before which posts are past retention, as receipts write times."""
-    return (now.astimezone(UTC) - timedelta(days=days)).isoformat(timespec="microseconds").replace("+00:00", "Z")
+    """The time before which posts are past retention, as receipts write times (the calendar's first instant when
+    counting back `days` leaves it: nothing was posted before that)."""
+    try:
+        start = now.astimezone(UTC) - timedelta(days=days)
+    except OverflowError:
+        start = datetime.min.replace(tzinfo=UTC)
+    return start.isoformat(timespec="microseconds").replace("+00:00", "Z")
 
 
 class Retention:
