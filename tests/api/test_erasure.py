@@ -43,7 +43,11 @@ class Erased:
         return str(self.visit.iris["ines"])
 
     def needles(self) -> list[str]:
-        return [INES_NAME, *INES_SAYS, self.ines]
+        return [INES_NAME, *INES_SAYS, *INES_SAYS_AS_COMPARED, self.ines]
+
+
+# Her words as the shared contexts compare texts (lower case, no punctuation): how a context quotes them.
+INES_SAYS_AS_COMPARED = ("my grandson visits on sunday", "thank you see you tomorrow")
 
 
 def human_rows(url: str, visit: Visit) -> dict[tuple[str, str], list[dict]]:
@@ -68,6 +72,13 @@ def erased(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Erased]:
                   str(visit.iris["ines"]), "modality": "speech", "text": INES_SAYS[0]},
         )  # fmt: skip
         assert resolved.status_code == 200, resolved.text
+        # And one that overheard her without knowing who spoke: the context it makes quotes her, naming no one.
+        overheard = httpx.post(
+            f"{server.url}/shared-context/resolve",
+            json={"event_kind": "human_utterance", "observed_at": "2026-03-10T09:00:21Z", "modality": "speech",
+                  "text": INES_SAYS[1]},
+        )  # fmt: skip
+        assert overheard.status_code == 200, overheard.text
         # An auditor's SPARQL query takes a copy of the store (users' queries run on copies).
         assert INES_NAME in httpx.post(f"{server.url}/sparql", data={"query": "SELECT * { ?s ?p ?o }"}).text
         before = human_rows(server.url, visit)

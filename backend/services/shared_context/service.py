@@ -12,7 +12,13 @@ from dataclasses import dataclass, field
 
 from segb_server.backend.services.clock import utc_iso
 from segb_server.backend.services.errors import Conflict, InvalidParameter, NotFound
-from segb_server.backend.services.shared_context.policy import MAX_CANDIDATES_PER_CASE, Policy, digest, slug
+from segb_server.backend.services.shared_context.policy import (
+    MAX_CANDIDATES_PER_CASE,
+    Policy,
+    digest,
+    scoring_text,
+    slug,
+)
 from segb_server.backend.services.shared_context.scoring import Score, decisive, may_match, ranked, score
 from segb_server.backend.services.shared_context.state import Case, Context, ContextState, ObservationRow
 from segb_server.backend.state.database import Database
@@ -212,9 +218,11 @@ class SharedContextService:
         return Decision(case_id, "rejected", case.source_uri, None, None)
 
     def forget(self, iris: set[str], texts: set[str]) -> int:
-        """An erasure: every context and observation naming one of `iris` or quoting one of `texts` goes."""
+        """An erasure: every context and observation naming one of `iris` or quoting one of `texts` goes (a
+        context quotes a text as its scoring compares it: `scoring_text`)."""
+        compared = {form for form in map(scoring_text, texts) if form is not None}
         with self.state.transaction() as state:
-            removed = state.forget(iris, texts)
+            removed = state.forget(iris, texts, compared)
         self.state.compact()
         return removed
 

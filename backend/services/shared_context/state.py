@@ -265,9 +265,11 @@ class ContextState:
 
     # --- forgetting ----------------------------------------------------------------------------------
 
-    def forget(self, iris: set[str], texts: set[str]) -> int:
+    def forget(self, iris: set[str], texts: set[str], compared_texts: set[str]) -> int:
         """Remove every observation, context, alias and review case naming one of `iris` (a person erased, their
-        shared events) or quoting one of `texts`; returns the rows removed. In the caller's transaction."""
+        shared events), every observation quoting one of `texts` and every context whose text is one of
+        `compared_texts` (the same texts as contexts keep them); returns the rows removed. In the caller's
+        transaction."""
         removed = 0
         for chunk in _chunks(sorted(iris)):
             marks = ", ".join(["?"] * len(chunk))
@@ -282,10 +284,9 @@ class ContextState:
         ]
         for case_id in naming:
             removed += self._db.execute("DELETE FROM cases WHERE case_id = ?", (case_id,)).rowcount or 0
-        for chunk in _chunks(sorted(texts)):
-            marks = ", ".join(["?"] * len(chunk))
-            for sql in _FORGET_BY_TEXT:
-                removed += self._db.execute(sql.format(marks), chunk).rowcount or 0
+        for sql, quoted in ((_FORGET_OBSERVATIONS_BY_TEXT, texts), (_FORGET_CONTEXTS_BY_TEXT, compared_texts)):
+            for chunk in _chunks(sorted(quoted)):
+                removed += self._db.execute(sql.format(", ".join(["?"] * len(chunk))), chunk).rowcount or 0
         return removed
 
     def forget_before(self, cutoff: str) -> int:
@@ -313,10 +314,8 @@ _FORGET_BY_IRI = (  # `{}`: the chunk's placeholders
     "DELETE FROM cases WHERE source_uri IN ({0}) OR selected_uri IN ({0})",
     "DELETE FROM rejected_pairs WHERE source IN ({0}) OR candidate IN ({0})",
 )
-_FORGET_BY_TEXT = (
-    "DELETE FROM observations WHERE text IN ({})",
-    "DELETE FROM contexts WHERE canonical_text IN ({})",
-)
+_FORGET_OBSERVATIONS_BY_TEXT = "DELETE FROM observations WHERE text IN ({})"  # as robots sent it
+_FORGET_CONTEXTS_BY_TEXT = "DELETE FROM contexts WHERE canonical_text IN ({})"  # as scoring compares it
 _QUOTED = re.compile(r'"([^"]+)"')  # every string of a case's candidates (JSON)
 _CHUNK = 300  # values per statement: three IN lists of this stay under SQLite's 32,766 parameters
 
