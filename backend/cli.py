@@ -236,9 +236,14 @@ def _check_catalog(settings: Settings) -> None:
 
 def _import(args: argparse.Namespace) -> int:
     settings = _settings(args)
+    from segb_server.backend.services.ingest.service import FILE_FORMATS, UNREADABLE_FILE
+
     missing = [str(path) for path in args.files if not path.is_file()]
     if missing:
         return _fail(f"no such file: {', '.join(missing)}")
+    unreadable = [path.name for path in args.files if path.suffix.lower() not in FILE_FORMATS]
+    if unreadable:  # before the store opens and a progress bar starts
+        return _fail(f"{', '.join(unreadable)}: {UNREADABLE_FILE}")
     with _services(settings) as services:
         total = sum(path.stat().st_size for path in args.files)
         with tqdm(total=total, unit="B", unit_scale=True, desc="import", file=sys.stderr) as bar:

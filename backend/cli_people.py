@@ -86,9 +86,11 @@ def erase(args: argparse.Namespace, settings: Settings, services_of: ServicesOf)
         f"({done.resources} resources); ledger entry {receipt.sequence}, log_id {receipt.log_id}"
     )
     if done.name_still_mentioned:
+        kept = done.name_still_mentioned
+        texts = "1 text the rule keeps" if kept == 1 else f"{kept} texts the rule keeps"
         print(
-            f"note: {done.name_still_mentioned} texts the rule keeps (a robot's reply, an activity's label) still "
-            "contain the person's first name; find them with a SPARQL query"
+            f"note: {texts} (a robot's reply, an activity's label) still {'contains' if kept == 1 else 'contain'} "
+            "the person's first name; find them with a SPARQL query"
         )
     return 0
 

@@ -91,13 +91,25 @@ def _validation_error(request: Request, error: RequestValidationError) -> JSONRe
     problems = [
         {
             "loc": list(issue.get("loc", ())),
-            "msg": issue.get("msg", ""),
+            "msg": _said(issue),
             "type": issue.get("type", ""),
         }
         for issue in error.errors()
     ]
     summary = "; ".join(f"{'.'.join(str(part) for part in p['loc'])}: {p['msg']}" for p in problems)
     return JSONResponse(error_body(422, problems, "invalid_request", message=summary), status_code=422)
+
+
+def _said(issue: dict[str, object]) -> str:
+    """An issue's message; for a body that is not JSON, what the parser met and where (FastAPI says only "JSON
+    decode error", at the character offset it puts in `loc`)."""
+    message = str(issue.get("msg", ""))
+    context = issue.get("ctx")
+    if issue.get("type") == "json_invalid" and isinstance(context, dict) and context.get("error"):
+        loc = list(issue.get("loc", ()))  # type: ignore[call-overload]
+        where = f" at character {loc[-1]}" if len(loc) > 1 and isinstance(loc[-1], int) else ""
+        return f"the body is not JSON: {context['error']}{where}"
+    return message
 
 
 def _http_error(request: Request, error: StarletteHTTPException) -> JSONResponse:

@@ -58,3 +58,13 @@ def test_a_hostile_body_is_a_4xx_naming_the_problem(memory_api: InProcess, case:
     assert (answer.status_code, detail in answer.json()["detail"]) == (status, True), answer.text[:300]
     assert memory_api.get("/events", headers={"Accept": "application/n-triples"}).content == b""
     assert memory_api.get("/healthz/ready").status_code == 200
+
+
+@pytest.mark.parametrize("path", ["/humans/erase", "/shared-context/resolve", "/shared-context/review/x/accept"])
+def test_a_body_that_is_not_json_is_named_so_with_where_the_parser_stopped(memory_api: InProcess, path: str) -> None:
+    """The routes whose body FastAPI reads: its own words are only "JSON decode error"."""
+    answer = memory_api.post(path, content=b'{"iri": "https://e.org/h", oops}', headers=JSON)
+    assert answer.status_code == 422
+    body = answer.json()
+    assert body["error"] == "invalid_request"
+    assert "the body is not JSON: Expecting property name enclosed in double quotes at character 27" in body["message"]

@@ -67,6 +67,21 @@ def test_import_reports_bad_files_clearly(tmp_path: Path) -> None:
     assert (missing.returncode, "no such file" in missing.stderr) == (2, True)
     assert invalid.returncode == 2
     assert "Invalid Turtle at line 2" in invalid.stderr
+    exported = tmp_path / "graph.jsonld"
+    exported.write_text("{}")
+    unread = segb("import", "--data-dir", str(tmp_path / "db"), str(exported))
+    assert unread.returncode == 2 and unread.stderr.splitlines() == [
+        "segb: error: graph.jsonld: segb import reads Turtle (.ttl, .turtle) or N-Triples (.nt, .ntriples) files"
+    ]  # one line, before any progress bar
+
+
+def test_an_export_in_n_triples_imports_again_whatever_its_suffix(tmp_path: Path) -> None:
+    loaded = segb("import", "--data-dir", str(tmp_path / "one"), str(FIXTURES / "sample_two_robots.ttl"))
+    assert loaded.returncode == 0, loaded.stderr
+    out = tmp_path / "all.ntriples"
+    assert segb("export", "--data-dir", str(tmp_path / "one"), "--format", "ntriples", "-o", str(out)).returncode == 0
+    again = segb("import", "--data-dir", str(tmp_path / "two"), str(out))
+    assert again.returncode == 0 and "all.ntriples: 799 triples read, 799 new" in again.stdout, again.stderr
 
 
 def test_serve_runs_api_and_ui_and_stops_on_sigterm(tmp_path: Path) -> None:

@@ -34,7 +34,13 @@ logger = logging.getLogger("segb.ingest")
 
 Ack = Literal["journal", "store"]
 IMPORT_BATCH_TRIPLES = 20_000
-FILE_FORMATS = {".ttl": RdfFormat.TURTLE, ".turtle": RdfFormat.TURTLE, ".nt": RdfFormat.N_TRIPLES}
+FILE_FORMATS = {
+    ".ttl": RdfFormat.TURTLE,
+    ".turtle": RdfFormat.TURTLE,
+    ".nt": RdfFormat.N_TRIPLES,
+    ".ntriples": RdfFormat.N_TRIPLES,
+}
+UNREADABLE_FILE = "segb import reads Turtle (.ttl, .turtle) or N-Triples (.nt, .ntriples) files"
 Progress = Callable[[int], None]
 
 
@@ -202,7 +208,7 @@ def format_for(path: Path) -> RdfFormat:
     try:
         return FILE_FORMATS[path.suffix.lower()]
     except KeyError:
-        raise InvalidParameter("file", f"{path.name}: use a .ttl or .nt file") from None
+        raise InvalidParameter("file", f"{path.name}: {UNREADABLE_FILE}") from None
 
 
 def _file_sha256(path: Path) -> str:

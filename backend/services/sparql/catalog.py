@@ -94,7 +94,7 @@ def to_term(parameter: Parameter, raw: str) -> Term:
         if kind == "dateTime":
             moment = datetime.fromisoformat(raw.replace("Z", "+00:00"))
             if moment.tzinfo is None:
-                raise _BadValue("needs a time zone, e.g. 2026-03-10T09:00:00Z")
+                raise _BadValue("needs a time of day and a time zone, e.g. 2026-03-10T09:00:00Z")
             return Literal(moment.isoformat(), datatype=NamedNode(XSD + "dateTime"))
         if kind == "decimal":
             number = Decimal(raw)
