@@ -18,9 +18,15 @@ from dataclasses import dataclass, field
 
 from pyoxigraph import Literal, NamedNode, RdfFormat, parse
 
-from segb_server.backend.services.errors import InvalidParameter, NotFound
+from segb_server.backend.services.errors import Conflict, InvalidParameter, NotFound
 from segb_server.backend.services.sparql.catalog import CatalogQuery
-from segb_server.backend.services.writing.erasure import Erasure, ErasureDone, recorded_before, touching
+from segb_server.backend.services.writing.erasure import (
+    Erasure,
+    ErasureDone,
+    SelectionOutdated,
+    recorded_before,
+    touching,
+)
 from segb_server.backend.services.writing.receipts import Receipt
 from segb_server.backend.services.writing.write_path import WritePath
 from segb_server.backend.store.base import Store, StoreUnavailable, select
@@ -29,6 +35,9 @@ logger = logging.getLogger("segb.people")
 
 RULE = "people/erase"
 APPLY_TIMEOUT_SECONDS = 600.0  # an erasure is answered once the store has dropped the triples
+# Times the rule is run again when posts about the person arrived while it ran (each may hold more of theirs to
+# erase); past that the erasure is refused, nothing recorded, rather than leave their newest words behind.
+FIND_ATTEMPTS = 5
 MAX_REASON = 500
 SHORTEST_TERM = 3  # words shorter than this are too common to look for in the server log
 
@@ -94,15 +103,7 @@ class ErasureService:
         reason = _checked_reason(reason)
         with self._one_at_a_time:
             clock = _Clock()
-            self._caught_up()
-            found = self.resources(human)
-            clock.lap("found")
-            if human not in found:
-                found.append(human)  # the journal may still hold them (a post not applied, an older history)
-            selection = touching(found)
-            erasure = Erasure(str(uuid.uuid4()), actor, "human", reason, selection, withhold=True)
-            done = self._journal(erasure, f"Nothing about <{human}> is held: nothing was erased.")
-            clock.lap("journaled")
+            found, done = self._found_and_journaled(human, reason, actor, clock)
             receipt = done.receipt
             forgotten = Forgotten(frozenset(found), frozenset(_texts(done.removed)))
             logger.warning(
@@ -131,11 +132,39 @@ class ErasureService:
 
     # --- steps ---------------------------------------------------------------------------------------
 
-    def _caught_up(self) -> None:
-        """The store holds the whole journal (the rule reads it), or StoreUnavailable."""
+    def _found_and_journaled(self, human: str, reason: str, actor: str, clock: _Clock) -> tuple[list[str], ErasureDone]:
+        """What the rule erases with `human`, found in the store as of an entry, and the erasure recorded with
+        nothing recorded after that entry touching it: a post about them that arrived while the rule ran may
+        hold a message of theirs the rule has not seen, so the rule runs again (Conflict when that keeps
+        happening)."""
+        for attempt in range(1, FIND_ATTEMPTS + 1):
+            as_of = self._caught_up()
+            found = self.resources(human)
+            clock.lap("found")
+            if human not in found:
+                found.append(human)  # the journal may still hold them (a post not applied, an older history)
+            erasure = Erasure(
+                str(uuid.uuid4()), actor, "human", reason, touching(found), withhold=True, found_as_of=as_of
+            )
+            try:
+                done = self._journal(erasure, f"Nothing about <{human}> is held: nothing was erased.")
+            except SelectionOutdated as outdated:
+                logger.info("erasure of a person: %s; finding what to erase again (attempt %d)", outdated, attempt)
+                continue
+            clock.lap("journaled")
+            return found, done
+        raise Conflict(
+            f"Posts about <{human}> kept arriving while the erasure looked for what to erase ({FIND_ATTEMPTS} "
+            "times): nothing was erased. Pause the robots that log this person, then erase again."
+        )
+
+    def _caught_up(self) -> int:
+        """The entry through which the store holds the journal (the rule reads it), or StoreUnavailable."""
         self._apply()
-        if not self.writes.wait_applied(self.writes.journal.head(), APPLY_TIMEOUT_SECONDS):
+        head = self.writes.journal.head()
+        if not self.writes.wait_applied(head, APPLY_TIMEOUT_SECONDS):
             raise StoreUnavailable("the store has not applied the journal yet; the erasure was not started")
+        return head
 
     def _journal(self, erasure: Erasure, nothing: str) -> ErasureDone:
         done = self.writes.journal.append_erasure(erasure)

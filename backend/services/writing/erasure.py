@@ -3,7 +3,10 @@ and appends the erasure's entry.
 
 The lines are found twice: first in a scan that does not hold posts up (batches, each read under the journal's
 lock for a moment), then, inside the write transaction, again in the posts the scan found and in every post
-recorded since, so a post arriving meanwhile cannot slip through. Either the whole erasure is committed — the
+recorded since, so a post arriving meanwhile cannot slip through. What to select may itself have been found in the
+store as of an entry (a person's resources, by a rule): a later post touching them may hold more to select (a new
+message of theirs, whose text links to nothing erased), so the transaction then records nothing and says so
+(`SelectionOutdated`), for the selection to be found again. Either the whole erasure is committed — the
 posts' content redacted, the triples' digests moved out of the journal's set (into the withheld ones, for a
 person), the erasure's entry and the lines the store must drop — or none of it.
 """
@@ -56,7 +59,8 @@ def recorded_before(cutoff: str) -> LineSelection:
 
 @dataclass(frozen=True)
 class Erasure:
-    """An erasure as asked: who, why, what kind, which lines, and whether re-sent triples are held back."""
+    """An erasure as asked: who, why, what kind, which lines, and whether re-sent triples are held back.
+    `found_as_of`: the journal entry through which the selection was found (None: it depends on no entry)."""
 
     log_id: str
     user: str
@@ -64,6 +68,16 @@ class Erasure:
     reason: str
     selection: LineSelection
     withhold: bool
+    found_as_of: int | None = None
+
+
+class SelectionOutdated(Exception):
+    """A post recorded after the entry an erasure's selection was found at holds lines it selects: that post may
+    hold more to erase than the selection knows (nothing was recorded)."""
+
+    def __init__(self, sequence: int) -> None:
+        super().__init__(f"post {sequence} touches what the erasure selects and was recorded after it was found")
+        self.sequence = sequence
 
 
 def candidates(
@@ -110,7 +124,8 @@ def redact(
     connection: Database, erasure: Erasure, found: list[int], scanned_through: int, record_sequence: int
 ) -> Redaction:
     """Inside the write transaction: remove the selected lines from the posts found and from every post since
-    the scan, noting their digests beside each post."""
+    the scan, noting their digests beside each post; SelectionOutdated (the transaction is then rolled back) when
+    one of them was recorded after the selection was found."""
     items: list[Redacted] = []
     removed: list[bytes] = []
     for sequence, log_id, recorded_at, blob, redacted in _posts(connection, found, scanned_through):
@@ -120,6 +135,8 @@ def redact(
         gone = [line for line in lines if erasure.selection.lines(line)]
         if not gone:
             continue
+        if erasure.found_as_of is not None and sequence > erasure.found_as_of:
+            raise SelectionOutdated(sequence)
         kept = b"".join(line + b"\n" for line in lines if not erasure.selection.lines(line))
         digests = (redacted or b"") + b"".join(line_digest(line) for line in gone)
         connection.execute(
