@@ -14,6 +14,7 @@ import threading
 import time
 import uuid
 from collections.abc import Callable
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 
 from pyoxigraph import Literal, NamedNode, RdfFormat, parse
@@ -35,8 +36,10 @@ logger = logging.getLogger("segb.people")
 
 RULE = "people/erase"
 APPLY_TIMEOUT_SECONDS = 600.0  # an erasure is answered once the store has dropped the triples
-# Times the rule is run again when posts about the person arrived while it ran (each may hold more of theirs to
-# erase); past that the erasure is refused, nothing recorded, rather than leave their newest words behind.
+# Times the rule runs when posts about the person arrive while it runs (each may hold more of theirs to erase):
+# from the second on, this process's posts wait until the erasure is recorded, so only other processes' posts
+# (API workers, hosts) can race it; past the last the erasure is refused, nothing recorded, rather than leave
+# their newest words behind.
 FIND_ATTEMPTS = 5
 MAX_REASON = 500
 SHORTEST_TERM = 3  # words shorter than this are too common to look for in the server log
@@ -138,19 +141,21 @@ class ErasureService:
         hold a message of theirs the rule has not seen, so the rule runs again (Conflict when that keeps
         happening)."""
         for attempt in range(1, FIND_ATTEMPTS + 1):
-            as_of = self._caught_up()
-            found = self.resources(human)
-            clock.lap("found")
-            if human not in found:
-                found.append(human)  # the journal may still hold them (a post not applied, an older history)
-            erasure = Erasure(
-                str(uuid.uuid4()), actor, "human", reason, touching(found), withhold=True, found_as_of=as_of
-            )
-            try:
-                done = self._journal(erasure, f"Nothing about <{human}> is held: nothing was erased.")
-            except SelectionOutdated as outdated:
-                logger.info("erasure of a person: %s; finding what to erase again (attempt %d)", outdated, attempt)
-                continue
+            # The first run holds no post up; once one raced it, the next runs keep this process's posts waiting.
+            with self.writes.journal.posts_held() if attempt > 1 else nullcontext():
+                as_of = self._caught_up()
+                found = self.resources(human)
+                clock.lap("found")
+                if human not in found:
+                    found.append(human)  # the journal may still hold them (a post not applied, an older history)
+                erasure = Erasure(
+                    str(uuid.uuid4()), actor, "human", reason, touching(found), withhold=True, found_as_of=as_of
+                )
+                try:
+                    done = self._journal(erasure, f"Nothing about <{human}> is held: nothing was erased.")
+                except SelectionOutdated as outdated:
+                    logger.info("erasure of a person: %s; finding what to erase again (attempt %d)", outdated, attempt)
+                    continue
             clock.lap("journaled")
             return found, done
         raise Conflict(

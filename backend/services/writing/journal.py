@@ -118,6 +118,8 @@ class Journal(JournalReads):
         self.database = database
         self.max_bytes = max_bytes
         self._lock = threading.Lock()
+        # This process's posts pass it on their way in; an erasure may hold them at it (`posts_held`).
+        self._admission = threading.Lock()
         # Digests known to be in the journal since the last clearing, for this epoch: re-published triples
         # then cost no database lookup. Only ever holds digests that were committed; bounded (known_digests.py).
         self._known = KnownDigests()
@@ -137,7 +139,7 @@ class Journal(JournalReads):
     def append_posts(self, posts: Sequence[PostEntry]) -> list[Receipt | BaseException]:
         """Record posts in one transaction, chained in order; each keeps only the triples new to the journal.
         A post that fails alone (its own error) fails alone; a failed commit fails them all, keeping nothing."""
-        with self._lock:
+        with self._admission, self._lock:
             with self._storage_errors(), self._transaction() as connection:
                 epoch = self._epoch(connection)
                 if epoch != self._known_epoch:  # a clearing or an erasure (in any process) since the last post
@@ -175,6 +177,13 @@ class Journal(JournalReads):
             receipt, epoch = self._clear(log_id, user, claimed_user)
             self._known, self._known_epoch = KnownDigests(), epoch
         return receipt
+
+    @contextmanager
+    def posts_held(self) -> Iterator[None]:
+        """This process's posts wait to be recorded while the block runs (an erasure finding what to erase and
+        recording it with nothing recorded between); other processes' posts are not held."""
+        with self._admission:
+            yield
 
     def append_erasure(self, erasure: Erasure) -> ErasureDone | None:
         """Remove the lines `erasure` selects from every post's content and record it as one entry, in one
