@@ -139,5 +139,12 @@ class SharedLeadership:
             self._connection = None
 
     def release(self) -> None:
+        """Let the lock go now. Unlocked before the connection closes: a closed connection's session ends a moment
+        later on the server, and another process asking in that moment would find the lock still held."""
         with self._lock:
+            if self._holding and self._connection is not None:
+                try:
+                    self._connection.execute("SELECT pg_advisory_unlock(%s)", (self._key,))
+                except Exception:  # the connection is gone already, and with it the lock
+                    logger.info("%s was released with its connection", self.where)
             self._drop_connection()
