@@ -41,6 +41,9 @@ APPLY_TIMEOUT_SECONDS = 600.0  # an erasure is answered once the store has dropp
 # (API workers, hosts) can race it; past the last the erasure is refused, nothing recorded, rather than leave
 # their newest words behind.
 FIND_ATTEMPTS = 5
+# While this process's posts are held, the store gets this long to apply what the journal took before them: a
+# store gone away must not hold posts up for long (with INGEST_ACK=journal they are taken while it is away).
+HELD_APPLY_TIMEOUT_SECONDS = 30.0
 MAX_REASON = 500
 SHORTEST_TERM = 3  # words shorter than this are too common to look for in the server log
 
@@ -142,8 +145,9 @@ class ErasureService:
         happening)."""
         for attempt in range(1, FIND_ATTEMPTS + 1):
             # The first run holds no post up; once one raced it, the next runs keep this process's posts waiting.
-            with self.writes.journal.posts_held() if attempt > 1 else nullcontext():
-                as_of = self._caught_up()
+            held = attempt > 1
+            with self.writes.journal.posts_held() if held else nullcontext():
+                as_of = self._caught_up(HELD_APPLY_TIMEOUT_SECONDS if held else APPLY_TIMEOUT_SECONDS)
                 found = self.resources(human)
                 clock.lap("found")
                 if human not in found:
@@ -163,11 +167,11 @@ class ErasureService:
             "times): nothing was erased. Pause the robots that log this person, then erase again."
         )
 
-    def _caught_up(self) -> int:
+    def _caught_up(self, timeout: float) -> int:
         """The entry through which the store holds the journal (the rule reads it), or StoreUnavailable."""
         self._apply()
         head = self.writes.journal.head()
-        if not self.writes.wait_applied(head, APPLY_TIMEOUT_SECONDS):
+        if not self.writes.wait_applied(head, timeout):
             raise StoreUnavailable("the store has not applied the journal yet; the erasure was not started")
         return head
 
