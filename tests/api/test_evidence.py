@@ -197,6 +197,17 @@ def test_after_an_erasure_a_bundle_verifies_and_says_what_was_removed(served: Se
     assert code == 0, out
 
 
+def test_an_empty_window_verifies_and_says_it_holds_nothing(served: Served, tmp_path: Path) -> None:
+    """A robot's IRI mistyped, or hours beside its events: a bundle of nothing is true evidence of nothing, and
+    the check says so rather than look like a bundle of something."""
+    files = bundle_of(served, robot="https://example.org/robots/ari/robot_ari", **WINDOW)
+    code, out = verify(served, files, tmp_path)
+    assert code == 0, out
+    assert "the window holds no triple" in out and "check the robot's IRI and the times" in out
+    code, out = verify(served, bundle_of(served, **WINDOW), tmp_path)
+    assert code == 0 and "the window holds no triple" not in out
+
+
 def test_a_bad_window_is_refused_by_name(served: Served) -> None:
     answer = httpx.get(f"{served.url}/evidence", params={"since": "yesterday"})
     assert (answer.status_code, answer.json()["error"]) == (422, "invalid_parameter")

@@ -215,7 +215,12 @@ def _check_triples(data: bytes, disclosed: dict[bytes, int], report: Report) -> 
         if line not in present:
             report.problems.append(f"a triple receipt {sequence} discloses is missing from {layout.TRIPLES}: "
                                    f"{_short(line)}")  # fmt: skip
-    if not report.problems:
+    if not report.problems and not present:
+        report.facts.append(
+            "the window holds no triple: nothing logged falls in it (check the robot's IRI and the times "
+            "in the manifest's query)"
+        )
+    elif not report.problems:
         report.facts.append(f"{len(present)} triples, each covered by a receipt")
 
 
