@@ -54,11 +54,10 @@ def retention(args: argparse.Namespace, settings: Settings, services_of: Service
     try:
         now = datetime.fromisoformat(args.as_of.replace("Z", "+00:00")) if args.as_of else None
     except ValueError:
+        now = datetime.min  # not a time: refused below, as a time without a zone is
+    if now is not None and now.tzinfo is None:
         print(f"segb: error: --as-of must be an ISO 8601 time with a zone, e.g. 2027-01-01T00:00:00Z (got "
               f"{args.as_of!r})", file=sys.stderr)  # fmt: skip
-        return 2
-    if now is not None and now.tzinfo is None:
-        print("segb: error: --as-of needs a time zone, e.g. 2027-01-01T00:00:00Z", file=sys.stderr)
         return 2
     with services_of(settings) as services:
         services.start()

@@ -106,8 +106,9 @@ def _said(issue: dict[str, object]) -> str:
     message = str(issue.get("msg", ""))
     context = issue.get("ctx")
     if issue.get("type") == "json_invalid" and isinstance(context, dict) and context.get("error"):
-        loc = list(issue.get("loc", ()))  # type: ignore[call-overload]
-        where = f" at character {loc[-1]}" if len(loc) > 1 and isinstance(loc[-1], int) else ""
+        loc = issue.get("loc")
+        offset = loc[-1] if isinstance(loc, tuple | list) and len(loc) > 1 else None
+        where = f" at character {offset}" if isinstance(offset, int) else ""
         return f"the body is not JSON: {context['error']}{where}"
     return message
 
