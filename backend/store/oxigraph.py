@@ -74,6 +74,7 @@ class OxigraphStore:
         self._unflushed = 0  # triples applied since the last flush began
         self._flushing = threading.Lock()  # held while a flush runs: a swap of the store or a close waits for it
         self.flushes = 0  # flushes begun (the memory bound's own count)
+        self._applied = self._read_cursor()
 
     def ping(self) -> None:
         try:
@@ -84,11 +85,8 @@ class OxigraphStore:
     def apply(self, quads: Sequence[Quad], through: int) -> None:
         # One `extend` is one transaction: the triples and the new cursor are committed together.
         with self._write_lock:
-            old = self._cursor_quads()
             self._store.extend([*quads, _cursor(through)])
-            for quad in old:
-                if quad.object != _cursor(through).object:
-                    self._store.remove(quad)
+            self._drop_cursor_unless(through)
             self._unflushed += len(quads)
             due = self.path is not None and self._unflushed >= self._flush_every
             if due and self._flushing.acquire(blocking=False):  # one at a time: a flush under way covers these too
@@ -122,6 +120,7 @@ class OxigraphStore:
             copy.bulk_extend(quad for quad in self._store if quad not in gone and quad.graph_name != CURSOR_GRAPH)
             copy.add(_cursor(through))
             copy.flush()
+            self._applied = through
             del copy
             # The copy never takes the old store's path: RocksDB names its files by path, and the old store stays
             # open while a reader still holds it (a query's answer, an export) — what it then writes or deletes
@@ -136,21 +135,23 @@ class OxigraphStore:
                 shutil.rmtree(old, ignore_errors=True)  # its text leaves the disk (open files: once their readers end)
 
     def _set_cursor(self, through: int) -> None:
-        old = self._cursor_quads()
         self._store.add(_cursor(through))
-        for quad in old:
-            if quad.object != _cursor(through).object:
-                self._store.remove(quad)
+        self._drop_cursor_unless(through)
+
+    def _drop_cursor_unless(self, through: int) -> None:
+        """The cursor is now `through` (its quad written): the one before goes. The store's cursor is kept in
+        memory too: this process alone writes the store, and reading it back was a twentieth of a small post's
+        time (and is what the views' process asks most often)."""
+        if self._applied is not None and self._applied != through:
+            self._store.remove(_cursor(self._applied))
+        self._applied = through
 
     def clear(self, through: int | None = None) -> int:
         with self._write_lock:
             removed = self.count()
             self._store.clear_graph(DefaultGraph())
             if through is not None:
-                old = self._cursor_quads()
-                self._store.add(_cursor(through))
-                for quad in old:
-                    self._store.remove(quad)
+                self._set_cursor(through)
         return removed
 
     def checkpoint(self, target: Path) -> None:
@@ -164,11 +165,15 @@ class OxigraphStore:
         return written
 
     def applied_through(self) -> int | None:
-        cursors = [int(quad.object.value) for quad in self._cursor_quads() if isinstance(quad.object, Literal)]
-        return max(cursors) if cursors else None
+        return self._applied
 
-    def _cursor_quads(self) -> list[Quad]:
-        return list(self._store.quads_for_pattern(CURSOR_SUBJECT, CURSOR_PREDICATE, None, CURSOR_GRAPH))
+    def _read_cursor(self) -> int | None:
+        """The cursor the store holds (the latest, should a crash have left two), alone from now on."""
+        quads = list(self._store.quads_for_pattern(CURSOR_SUBJECT, CURSOR_PREDICATE, None, CURSOR_GRAPH))
+        cursors = sorted(int(quad.object.value) for quad in quads if isinstance(quad.object, Literal))
+        for stale in cursors[:-1]:
+            self._store.remove(_cursor(stale))
+        return cursors[-1] if cursors else None
 
     def count(self) -> int:
         solutions = self._store.query(_COUNT)
