@@ -96,6 +96,11 @@ class Settings(BaseSettings):
         description="Keep the reports' rows and the graph index current as robots write; false: reports are "
         "evaluated by their queries on every request and /graph answers 503 (to measure what keeping them costs).",
     )
+    views_process: bool = Field(
+        True,
+        description="With `segb serve`, keep the views in a process of their own beside the API's, so requests "
+        "never wait for the views' work (not with STORE=memory); false: the API process keeps them in a thread.",
+    )
     retention_days: int | None = Field(
         None,
         ge=1,

@@ -5,7 +5,9 @@ any that dies); the kernel spreads connections over them. Each worker builds its
 the settings given on the command line are handed down as environment variables. Every worker accepts posts
 (the journal's SQLite transactions keep one hash chain) and serves reads; one of them, the holder of the
 leadership lock (services/ops/leadership.py), also applies the journal and keeps the views current. Only a
-remote store can be shared so: the embedded store is opened by one process.
+remote store can be shared so: the embedded store is opened by one process. The views are kept by a process of
+their own in either case (VIEWS_PROCESS, `backend/views_process.py`): started by the one API process, or by the
+supervisor of the workers.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ import uvicorn
 
 from segb_server.backend.config import Settings
 from segb_server.backend.listening import CannotListen, Listener
+from segb_server.backend.views_process import ViewsHome, ViewsProcess, views_home
 
 if TYPE_CHECKING:
     from fastapi import FastAPI
@@ -57,7 +60,7 @@ def worker_app() -> FastAPI:
 
     settings = Settings()
     configure_logging(settings)
-    return create_app(settings)
+    return create_app(settings, views_home=views_home(settings, workers=True))
 
 
 class WorkersRefused(ValueError):
@@ -163,7 +166,8 @@ def serve(settings: Settings, *, api: bool, ui: bool, demo: bool, listening: Cal
     listening()
     configs = []
     if api:
-        configs.append(uvicorn.Config(create_app(settings, demo=demo), port=settings.api_port, **_options(settings)))
+        app = create_app(settings, demo=demo, views_home=views_home(settings, workers=False))
+        configs.append(uvicorn.Config(app, port=settings.api_port, **_options(settings)))
     if ui:
         configs.append(_ui_config(settings))
     # uvicorn's own choice of loop (uvloop when installed), which `asyncio.run` would bypass.
@@ -184,6 +188,10 @@ def serve_api_workers(settings: Settings, *, with_ui: bool, listening: Callable[
     if with_ui:
         ui = multiprocessing.get_context("spawn").Process(target=_serve_ui, name="segb-ui", daemon=True)
         ui.start()
+    views = None
+    if views_home(settings, workers=True) is ViewsHome.SIBLING:  # the workers share a remote store: no channel
+        views = ViewsProcess(settings, None)
+        views.start()
     try:
         workers = settings.api_workers
         uvicorn.run(
@@ -195,6 +203,8 @@ def serve_api_workers(settings: Settings, *, with_ui: bool, listening: Callable[
             **_options(settings),
         )
     finally:
+        if views is not None:
+            views.stop()
         if ui is not None:
             ui.terminate()
             ui.join(timeout=10)

@@ -41,8 +41,12 @@ from segb_server.backend.services.container import REQUIRED_QUERIES, build_servi
 from segb_server.backend.services.ops.server_log import ServerLog
 from segb_server.backend.services.ops.store_monitor import StoreMonitor
 from segb_server.backend.services.sparql.catalog import Catalog
+from segb_server.backend.services.writing.write_path import Role
 from segb_server.backend.store.base import Store
+from segb_server.backend.store.channel import StoreChannel
 from segb_server.backend.store.factory import open_store
+from segb_server.backend.store.oxigraph import OxigraphStore
+from segb_server.backend.views_process import ViewsHome, ViewsProcess, ViewsStatus
 
 logger = logging.getLogger("segb.api")
 
@@ -75,9 +79,16 @@ ROUTERS = [
 ]
 
 
-def create_app(settings: Settings | None = None, store: Store | None = None, *, demo: bool = False) -> FastAPI:
+def create_app(
+    settings: Settings | None = None,
+    store: Store | None = None,
+    *,
+    demo: bool = False,
+    views_home: ViewsHome = ViewsHome.THIS,
+) -> FastAPI:
     """The API app. With `store` given, the app uses it and leaves closing it to the caller. With `demo`, the
-    demo dataset is loaded into an empty store before the first request is served."""
+    demo dataset is loaded into an empty store before the first request is served. `views_home`: which process
+    keeps the views (`backend/views_process.py`); this one's own thread unless `segb serve` says otherwise."""
     settings = settings or Settings()
     # Loaded here, before the app exists: the report routes and their documentation are made from it.
     catalog = Catalog(settings.sparql_dir, required=REQUIRED_QUERIES)
@@ -87,12 +98,25 @@ def create_app(settings: Settings | None = None, store: Store | None = None, *, 
         server_log = ServerLog.from_settings(settings)
         server_log.install()
         active_store = store if store is not None else open_store(settings)
-        app.state.services = build_services(settings, active_store, server_log=server_log, catalog=catalog)
+        role = Role.WHOLE if views_home is ViewsHome.THIS else Role.API
+        app.state.services = build_services(settings, active_store, server_log=server_log, catalog=catalog, role=role)
+        if role is Role.API:
+            app.state.services.writes.views_elsewhere = ViewsStatus(settings.data_dir)
+        # The embedded store is read by the views' process through this one (RocksDB lets one process open it).
+        channel = (
+            StoreChannel(active_store)
+            if views_home is ViewsHome.CHILD and isinstance(active_store, OxigraphStore)
+            else None
+        )
+        address = channel.address if channel is not None else None
+        views = ViewsProcess(settings, address) if views_home is ViewsHome.CHILD else None
         logger.info("SEGB API ready (store=%s, auth=%s)", active_store.kind, settings.auth_enabled)
         monitor = StoreMonitor(
             active_store, max_retry_seconds=settings.store_retry_max_seconds, check_seconds=settings.store_check_seconds
         )
         await anyio.to_thread.run_sync(app.state.services.start)  # reads the store's cursor: I/O
+        if views is not None:
+            views.start()
         if demo:
             # The app's own services: with STORE=memory the journal and resolver exist nowhere else.
             await anyio.to_thread.run_sync(load_demo, app.state.services)
@@ -102,7 +126,11 @@ def create_app(settings: Settings | None = None, store: Store | None = None, *, 
                 yield
                 background.cancel_scope.cancel()
         finally:
+            if views is not None:  # it reads the store through this process: it stops first
+                await anyio.to_thread.run_sync(views.stop)
             app.state.services.close()
+            if channel is not None:
+                channel.close()
             if store is None:
                 active_store.close()
             server_log.uninstall()

@@ -39,7 +39,7 @@ from segb_server.backend.services.upkeep.kept_queries.projection import KeptQuer
 from segb_server.backend.services.upkeep.kept_queries.rows import KeptRows
 from segb_server.backend.services.upkeep.seen_terms import SEEN_TERMS_FILE
 from segb_server.backend.services.writing.views_pace import ViewsPace
-from segb_server.backend.services.writing.write_path import WritePath
+from segb_server.backend.services.writing.write_path import Role, WritePath
 from segb_server.backend.state.opening import open_state
 from segb_server.backend.store.base import Store
 
@@ -109,11 +109,38 @@ class Services:
         self.shared_context.close()
 
 
-def build_services(
-    settings: Settings, store: Store, *, server_log: ServerLog | None = None, catalog: Catalog | None = None
-) -> Services:
-    """Everything a server needs; nothing is started (`services.start()` starts the write path's threads)."""
-    catalog = catalog or Catalog(settings.sparql_dir, required=REQUIRED_QUERIES)
+@dataclass
+class KeptViews:
+    """The views of the catalog's reports, the timeline's kinds, the rules and the graph: what reads them, and
+    (with KEEP_VIEWS) what the write path keeps current. Built alike wherever they are read or kept."""
+
+    reports: KeptQueries
+    timeline: KeptQueries
+    timeline_sources: list[KeptSource]
+    findings: KeptQueries
+    shapes: ShapeFindings | None  # None without KEEP_VIEWS: shapes are then checked in full
+    shape_rules: dict[str, ShapeRule]
+    rules: RuleCatalog
+    graph: GraphIndex
+    kept: list[KeptView]  # what the write path keeps current (none without KEEP_VIEWS)
+
+    def housekeeping(self) -> None:
+        """Drop what the views' storage holds for reports, kinds or rules no longer kept."""
+        self.reports.drop_unkept()
+        self.findings.drop_unkept()
+        self.timeline.drop_unkept()
+
+    def close(self) -> None:
+        self.graph.close()
+        self.reports.rows.close()
+        self.findings.rows.close()
+        if self.shapes is not None:
+            self.shapes.close()
+        self.timeline.rows.close()
+
+
+def build_views(settings: Settings, store: Store, catalog: Catalog) -> KeptViews:
+    """The views, as files in the data directory (temporary ones for a memory store)."""
     folder = None if settings.store == "memory" else settings.data_dir  # views of a memory store: temporary files
     kept_reports = KeptQueries(store, KeptRows(folder and folder / REPORTS_FILE))
     index = GraphIndex(store, folder and folder / GRAPH_FILE, detail_literals=TOLD_LITERALS)
@@ -122,39 +149,51 @@ def build_services(
     kept_findings = KeptQueries(store, KeptRows(folder and folder / FINDINGS_FILE))
     kept_timeline = KeptQueries(store, KeptRows(folder and folder / TIMELINE_FILE))
     timeline = timeline_sources(catalog, store, kept_timeline)
-    shape_findings = None
-    if settings.keep_views:
-        shape_findings = ShapeFindings(
-            store, list(shape_rules.values()), folder and folder / SHAPE_FINDINGS_FILE, kept_findings.rows.changed
-        )
-        for query in catalog.under(REPORTS_FOLDER):
-            kept_reports.add(query)
-        for rule in rules.sparql():
-            assert rule.query is not None
-            kept_findings.add(rule.query)
-        for source in timeline:
-            kept_timeline.add(source.query)
+    if not settings.keep_views:  # nothing kept; the rows kept before stay as they are for when views are on again
+        return KeptViews(kept_reports, kept_timeline, timeline, kept_findings, None, shape_rules, rules, index, [])
+    shape_findings = ShapeFindings(
+        store, list(shape_rules.values()), folder and folder / SHAPE_FINDINGS_FILE, kept_findings.rows.changed
+    )
+    for query in catalog.under(REPORTS_FOLDER):
+        kept_reports.add(query)
+    for rule in rules.sparql():
+        assert rule.query is not None
+        kept_findings.add(rule.query)
+    for source in timeline:
+        kept_timeline.add(source.query)
+    kept: list[KeptView] = [
+        *kept_reports.views(),
+        *kept_timeline.views(),
+        index,
+        *kept_findings.views(),
+        shape_findings,
+    ]
+    return KeptViews(
+        kept_reports, kept_timeline, timeline, kept_findings, shape_findings, shape_rules, rules, index, kept
+    )
 
-        def housekeeping() -> None:
-            kept_reports.drop_unkept()
-            kept_findings.drop_unkept()
-            kept_timeline.drop_unkept()
 
-        views: list[KeptView] = [
-            *kept_reports.views(),
-            *kept_timeline.views(),
-            index,
-            *kept_findings.views(),
-            shape_findings,
-        ]
-        writes = WritePath.open(settings, store, views, housekeeping)
-    else:  # nothing kept; the rows kept before stay as they are for when views are on again
-        writes = WritePath.open(settings, store, [])
+def build_services(
+    settings: Settings,
+    store: Store,
+    *,
+    server_log: ServerLog | None = None,
+    catalog: Catalog | None = None,
+    role: Role = Role.WHOLE,
+) -> Services:
+    """Everything a server needs; nothing is started (`services.start()` starts the write path's threads).
+    `role`: Role.API where the views are kept by a process of their own, which this one follows."""
+    catalog = catalog or Catalog(settings.sparql_dir, required=REQUIRED_QUERIES)
+    folder = None if settings.store == "memory" else settings.data_dir
+    views = build_views(settings, store, catalog)
+    kept_reports, kept_findings, kept_timeline = views.reports, views.findings, views.timeline
+    shape_findings, index, timeline = views.shapes, views.graph, views.timeline_sources
+    writes = WritePath.open(settings, store, views.kept, views.housekeeping if views.kept else None, role)
     version = DataVersion()
     writes.on_applied(lambda _step: version.bump())  # whatever the applier writes invalidates cached results
     cache = ResultCache(version, enabled=store.kind in OWNED_STORES)
     findings = FindingsService(
-        rules, store, kept_findings if settings.keep_views else None, shape_findings, shape_rules
+        views.rules, store, kept_findings if settings.keep_views else None, shape_findings, views.shape_rules
     )
     graph = GraphService(
         catalog, store, index, wait_ready=lambda timeout: writes.wait_viewed(0, timeout), pending=writes.on_the_way

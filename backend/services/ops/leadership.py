@@ -26,13 +26,16 @@ from segb_server.backend.state.file_lock import FileLock
 logger = logging.getLogger("segb.leadership")
 
 LOCK_FILE = "leader.lock"
+# Held by the views' own process (`segb serve` with VIEWS_PROCESS): the API process then holds LOCK_FILE to apply.
+VIEWS_LOCK_FILE = "views.lock"
 
 
 class Leadership:
     """Held by at most one process per lock file; `None` as the path: this process alone (always held)."""
 
-    def __init__(self, path: Path | None) -> None:
+    def __init__(self, path: Path | None, doing: str = "applies the journal and keeps the views current") -> None:
         self.path = path
+        self.doing = doing  # what the holder does, as the log says it
         self.where = str(path)
         self._file: FileLock | None = None
         self._lock = threading.Lock()
@@ -57,7 +60,7 @@ class Leadership:
                 return False
             lock.write_note(f"{os.getpid()}\n")
             self._file = lock
-        logger.info("this process (pid %d) applies the journal and keeps the views current", os.getpid())
+        logger.info("this process (pid %d) %s", os.getpid(), self.doing)
         return True
 
     def release(self) -> None:
@@ -65,6 +68,22 @@ class Leadership:
             if self._file is not None:
                 self._file.close()  # closing it releases the lock
                 self._file = None
+
+
+class Following:
+    """Never held: this process follows what another process does (the views kept by a process of their own, or
+    the journal applied by the API process, for the views' process)."""
+
+    held = False
+
+    def __init__(self, who: str) -> None:
+        self.where = who
+
+    def try_acquire(self) -> bool:
+        return False
+
+    def release(self) -> None:
+        pass
 
 
 class SharedLeadership:
@@ -148,3 +167,6 @@ class SharedLeadership:
                 except Exception:  # the connection is gone already, and with it the lock
                     logger.info("%s was released with its connection", self.where)
             self._drop_connection()
+
+
+Lead = Leadership | SharedLeadership | Following  # what a process may be told to lead by

@@ -37,7 +37,7 @@ from typing import Protocol, runtime_checkable
 from pyoxigraph import Quad
 
 from segb_server.backend.services.errors import OUTAGES
-from segb_server.backend.services.ops.leadership import Leadership
+from segb_server.backend.services.ops.leadership import Lead, Leadership
 from segb_server.backend.services.upkeep.delta import Delta
 from segb_server.backend.services.upkeep.seen_terms import SeenTerms
 from segb_server.backend.services.writing.applier import Applied, Applier, applied_steps, quads_of
@@ -65,6 +65,7 @@ START_WITHIN_SECONDS = 0.4
 NO_REST_BEHIND_SECONDS = 1.0
 EMBEDDED_VIEW_WORKERS = 2  # views updated side by side on the embedded store (see the module's docstring)
 FOLLOW_SECONDS = 0.25  # how often a following process reads how far the leader's views are
+PULL_SECONDS = 0.05  # where another process applies, how often the views read the store's cursor while caught up
 # Applied steps wait in the queue with their triples up to this many; past it, a step waits as its journal
 # entries' numbers and its triples are read back from the journal when its turn comes, so memory stays bounded
 # however far the views fall behind (a burst of posts, a slow store).
@@ -147,11 +148,12 @@ class ViewKeeper:
         store: Store,
         journal: Journal,
         views: list[KeptView],
-        leadership: Leadership | None = None,
+        leadership: Lead | None = None,
         applier: Applier | None = None,
         housekeeping: Callable[[], None] | None = None,
         max_queued_triples: int = MAX_QUEUED_TRIPLES,
         seen_terms: SeenTerms | None = None,
+        rest_ratio: float = REST_RATIO,
     ) -> None:
         """`applier`: the process's applier, when the views' leadership is not its (then, while it does not
         apply, the views read what it saw applied from the journal). `housekeeping`: run once the views are
@@ -163,6 +165,7 @@ class ViewKeeper:
         self.seen_terms = seen_terms
         self.leadership = leadership or Leadership(None)
         self._applier = applier if applier is not None and applier.leadership is not self.leadership else None
+        self.rest_ratio = rest_ratio
         self._housekeeping = housekeeping
         self._queue: queue.Queue[_Waiting | None] = queue.Queue()
         self._queued_triples = 0  # held by the steps in the queue
@@ -302,21 +305,20 @@ class ViewKeeper:
                 if isinstance(marker, _Marker):
                     marker.done.set()
             ended = time.monotonic()
-            resting = applied and self._waited() < NO_REST_BEHIND_SECONDS
-            rested = ended + min(MAX_REST_SECONDS, REST_RATIO * (ended - began)) if resting else 0.0
+            resting = applied and self.rest_ratio > 0 and self._waited() < NO_REST_BEHIND_SECONDS
+            rested = ended + min(MAX_REST_SECONDS, self.rest_ratio * (ended - began)) if resting else 0.0
 
     def _next_steps(self, rested: float) -> list[Applied | _Unread | _Marker] | None:
         """What to do next, once the rest ending at `rested` is over (or the first step waiting has waited
         START_WITHIN_SECONDS): what the applier queued, or (where another process applies) what the journal
         holds up to the store's cursor. None when stopping."""
         if self._applier is not None:
-            wait: float | None = FOLLOW_SECONDS
-        else:
-            wait = max(0.0, self._retry_at - time.monotonic()) if self._set_aside else None
+            return self._next_pulled(rested)
+        wait = max(0.0, self._retry_at - time.monotonic()) if self._set_aside else None
         try:
             first = self._queue.get(timeout=wait)
         except queue.Empty:
-            return [] if self._applier is None else list(self._pulled())
+            return []
         if first is None:
             return None
         if self._stopping.wait(max(0.0, min(rested, first.since + START_WITHIN_SECONDS) - time.monotonic())):
@@ -330,8 +332,35 @@ class ViewKeeper:
             self._queued_triples -= sum(len(item.quads) for item in items if isinstance(item, Applied))
         return items
 
+    def _next_pulled(self, rested: float) -> list[Applied | _Unread | _Marker] | None:
+        """Where another process applies (the views' own process, a host that does not apply): the journal's
+        entries up to the store's cursor, which is read every PULL_SECONDS while there is nothing new. The same
+        rest as for steps this process applied, cut short as START_WITHIN_SECONDS says. None when stopping."""
+        rest = rested - time.monotonic()
+        if rest > 0 and self._stopping.wait(min(rest, max(0.0, START_WITHIN_SECONDS - self._waited()))):
+            return None
+        while True:
+            markers: list[Applied | _Unread | _Marker] = []
+            while not self._queue.empty():  # `wait_until_current`'s, answered once what is applied now is in
+                if (waiting := self._queue.get()) is None:
+                    return None
+                markers.append(waiting.item)
+            steps = self._pulled()
+            if steps or markers or self._set_aside:
+                return [*steps, *markers]
+            if self._stopping.wait(PULL_SECONDS):
+                return None
+
     def _waited(self) -> float:
-        """How long the oldest step in the queue has waited (seconds; 0 when none waits)."""
+        """How long the oldest step the views miss has waited (seconds; 0 when none waits): the oldest in the
+        queue, or (where another process applies) the oldest journal entry applied and not viewed."""
+        if self._applier is not None:
+            if self._applier.applied <= self.through:
+                return 0.0
+            try:
+                return self.journal.age_of(self.through + 1)
+            except OUTAGES:
+                return 0.0
         with self._queue.mutex:
             head = self._queue.queue[0] if self._queue.queue else None
         return 0.0 if head is None else time.monotonic() - head.since
@@ -354,17 +383,21 @@ class ViewKeeper:
         return steps
 
     def _pulled(self) -> list[Applied]:
+        """The steps the store has and the views do not, read from the journal (at most BATCH_STEPS), once the
+        store's cursor is read again (it is the applying process's)."""
         assert self._applier is not None
         if self._applier.leadership.held:
             return []  # this process applies: its steps come through the queue
-        behind = self._applier.applied - self.through
-        if behind <= 0:
-            return []
         try:
-            return applied_steps(self.journal.entries_after(self.through, min(behind, BATCH_STEPS)))
+            behind = self._applier.follow() - self.through
+            steps = (
+                applied_steps(self.journal.entries_after(self.through, min(behind, BATCH_STEPS))) if behind > 0 else []
+            )
         except OUTAGES as error:  # read again at the next turn
             self.outage = str(error)
             return []
+        self.outage = None
+        return steps
 
     def _read_back(self, before: int) -> list[Applied]:
         """The journal's entries after the views' and before `before`, as steps; from the last clearing when
@@ -538,6 +571,10 @@ class ViewKeeper:
                     time.perf_counter() - started)  # fmt: skip
 
     def _process(self, items: list[Applied | _Unread]) -> None:
+        if not self.views:  # KEEP_VIEWS=false: nothing to read or match; waiting for the views waits for the store
+            last = items[-1]
+            self._advance(last.last if isinstance(last, _Unread) else last.entries[-1].sequence)
+            return
         steps = [step for step in self._read_unread(items) if step.entries[-1].sequence > self.through]
         if not steps:
             return

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from pyoxigraph import Quad, RdfFormat, parse
 
 from segb_server.backend.services.errors import OUTAGES
-from segb_server.backend.services.ops.leadership import Leadership, SharedLeadership
+from segb_server.backend.services.ops.leadership import Lead, Leadership
 from segb_server.backend.services.writing.cursor import Cursor
 from segb_server.backend.services.writing.journal import Journal, JournalEntry
 from segb_server.backend.store.base import Store
@@ -70,7 +70,7 @@ class Applier:
         store: Store,
         *,
         batch_triples: int,
-        leadership: Leadership | SharedLeadership | None = None,
+        leadership: Lead | None = None,
     ) -> None:
         self.journal = journal
         self.store = store
@@ -98,7 +98,7 @@ class Applier:
                 with self._apply_lock:
                     self._read_cursor()
             else:
-                self._follow()
+                self.follow()
         except OUTAGES as error:
             self.last_error = str(error)
         self._thread = threading.Thread(target=self._run, name="segb-applier", daemon=True)
@@ -151,7 +151,7 @@ class Applier:
         that does not lead, only reads how far the leader applied. Without `wait`, returns at once when another
         thread is applying (it applies what was appended meanwhile too, or the applier's thread does)."""
         if not self.leadership.try_acquire():
-            return self._follow()
+            return self.follow()
         if not self._apply_lock.acquire(blocking=wait):
             return self.cursor.value
         try:
@@ -181,8 +181,8 @@ class Applier:
             return 0, 0.0
         return behind, self.journal.age_of(self.applied + 1)
 
-    def _follow(self) -> int:
-        """Take the store's cursor as this process's progress (it is the leader's)."""
+    def follow(self) -> int:
+        """Take the store's cursor as this process's progress (it is the leader's); raises the store's outage."""
         cursor = self.store.applied_through()
         # Never backwards: a store behind what was seen applied is one restored or wiped, which the leader
         # brings up again; meanwhile what this process told its posters stays true of the journal.
@@ -192,7 +192,7 @@ class Applier:
 
     def _follow_quietly(self) -> None:
         try:
-            self._follow()
+            self.follow()
         except OUTAGES as error:
             self.last_error = str(error)
 

@@ -4,26 +4,58 @@ A post is recorded in the journal (durable, hash-chained); the applier writes th
 order; the views' keeper brings every view (the reports' rows, the graph index, …) up to each applied step.
 With several API processes, one among all that share the journal applies (`apply_leadership`: a file lock,
 or an advisory lock in PostgreSQL when the state is there), and one per data directory keeps the views
-(`views_leadership`); the others follow what the leaders did. What the rest of the server needs of all this
-is here: wait until a post is applied or viewed, how far behind each stage is, and what is on its way.
+(`views_leadership`); the others follow what the leaders did. A process's `Role` says which of these it may
+take on: both (one process, or API workers that keep the views themselves), or one side each when `segb serve`
+keeps the views in a process of their own (`backend/views_process.py`). What the rest of the server needs of
+all this is here: wait until a post is applied or viewed, how far behind each stage is, and what is on its way.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from enum import Enum
+from typing import Protocol
 
 from pyoxigraph import Quad
 
 from segb_server.backend.config import Settings
-from segb_server.backend.services.ops.leadership import LOCK_FILE, Leadership, SharedLeadership
-from segb_server.backend.services.upkeep.keeper import KeptView, ViewKeeper
+from segb_server.backend.services.ops.leadership import (
+    LOCK_FILE,
+    VIEWS_LOCK_FILE,
+    Following,
+    Lead,
+    Leadership,
+    SharedLeadership,
+)
+from segb_server.backend.services.upkeep.keeper import REST_RATIO, KeptView, ViewKeeper
 from segb_server.backend.services.upkeep.seen_terms import SEEN_TERMS_FILE, SeenTerms
 from segb_server.backend.services.writing.applier import Applied, Applier
 from segb_server.backend.services.writing.journal import Journal
 from segb_server.backend.services.writing.journal_file import journal_path
 from segb_server.backend.state.opening import open_state
 from segb_server.backend.store.base import Store
+
+
+class Role(Enum):
+    """What one process does of the write path, each part when it holds that part's leadership."""
+
+    WHOLE = "whole"  # applies the journal and keeps the views: one process, or API workers that take turns
+    API = "api"  # applies the journal; follows the views their own process keeps (`segb serve`, VIEWS_PROCESS)
+    VIEWS = "views"  # the views' own process: keeps the views; follows what an API process applies
+
+
+class ViewsElsewhere(Protocol):
+    """How the views' own process is, as an API process learns it (`backend/views_process.py`)."""
+
+    def down(self) -> str | None:
+        """Why that process is not keeping the views just now; None while it runs."""
+
+    def outage(self) -> str | None:
+        """The outage its views are retrying (the store or their storage away): every view waits."""
+
+    def error(self) -> str | None:
+        """What readiness tells of its views: the outage, or why views set aside are not built."""
 
 
 @dataclass(frozen=True)
@@ -44,6 +76,7 @@ class WritePath:
         store: Store,
         views: list[KeptView],
         housekeeping: Callable[[], None] | None = None,
+        role: Role = Role.WHOLE,
     ) -> WritePath:
         """The journal of `settings` (SQLite in the data directory, PostgreSQL with STATE_URL, memory with
         STORE=memory), its applier into `store`, and the keeper of `views`; nothing started yet.
@@ -58,34 +91,47 @@ class WritePath:
             ),
             max_bytes=settings.journal_max_bytes,
         )
-        views_leadership = Leadership(None if in_memory else settings.data_dir / LOCK_FILE)
-        apply_leadership = SharedLeadership(settings.state_url, "applier") if settings.state_url else views_leadership
+        apply_leadership, views_leadership = _leaderships(settings, role, in_memory)
         applier = Applier(journal, store, batch_triples=settings.apply_batch_triples, leadership=apply_leadership)
-        seen_terms = SeenTerms(None if in_memory else settings.data_dir / SEEN_TERMS_FILE) if views else None
-        keeper = ViewKeeper(store, journal, views, views_leadership, applier, housekeeping, seen_terms=seen_terms)
-        applier.on_applied(keeper.on_applied)
-        return cls(journal, applier, keeper, apply_leadership, views_leadership)
+        keeps = views and role is not Role.API  # an API process whose views have a process of their own reads them
+        seen_terms = SeenTerms(None if in_memory else settings.data_dir / SEEN_TERMS_FILE) if keeps else None
+        # A rest after each batch lets the next one hold more posts for the same queries, and (in one process) gives
+        # the requests their share of the interpreter. The views' own process on the embedded store has neither
+        # reason: its batches cost per post, and a rest would leave its core idle (one robot, 2 minutes: 123 posts/s
+        # against 114 resting). A remote store's batches are planned whatever their size: they rest there.
+        rests = role is not Role.VIEWS or store.remote
+        keeper = ViewKeeper(
+            store, journal, views, views_leadership, applier, housekeeping, seen_terms=seen_terms,
+            rest_ratio=REST_RATIO if rests else 0.0,
+        )  # fmt: skip
+        if role is not Role.API:  # an API process's keeper only follows: the steps would pile up in its queue
+            applier.on_applied(keeper.on_applied)
+        return cls(journal, applier, keeper, apply_leadership, views_leadership, role)
 
     def __init__(
         self,
         journal: Journal,
         applier: Applier,
         keeper: ViewKeeper,
-        apply_leadership: Leadership | SharedLeadership,
-        views_leadership: Leadership,
+        apply_leadership: Lead,
+        views_leadership: Lead,
+        role: Role = Role.WHOLE,
     ) -> None:
         self.journal = journal
         self.applier = applier
         self.keeper = keeper
         self.apply_leadership = apply_leadership
         self.views_leadership = views_leadership
+        self.role = role
+        self.views_elsewhere: ViewsElsewhere | None = None  # Role.API: how the views' own process is
 
     def start(self) -> None:
         """Start the background work of a serving API: applying the journal and keeping the views current (or,
         where another process leads, following it)."""
         self.apply_leadership.try_acquire()
         self.views_leadership.try_acquire()
-        self.applier.start()
+        if self.role is not Role.VIEWS:  # the views' process reads the store's cursor as its views need it
+            self.applier.start()
         self.keeper.start()
 
     def close(self) -> None:
@@ -142,12 +188,20 @@ class WritePath:
         return self.keeper.lag(self.applier.applied)[1]
 
     def views_failing(self) -> bool:
-        """The views' keeper is retrying an outage (a store away, the views' storage failing): every view waits
-        (not so for a view set aside, built again while the others are kept current)."""
-        return self.keeper.outage is not None
+        """The views' keeper is retrying an outage (a store away, the views' storage failing), or the views'
+        process is not running: every view waits (not so for a view set aside, built again while the others are
+        kept current)."""
+        elsewhere = self.views_elsewhere
+        return self.keeper.outage is not None or (
+            elsewhere is not None and (elsewhere.down() is not None or elsewhere.outage() is not None)
+        )
 
     def views_error(self) -> str | None:
-        """The error the views' keeper is retrying, if it is: an outage, or why views set aside are not built."""
+        """The error the views' keeper is retrying, if it is: an outage, or why views set aside are not built;
+        or why the views' process is not keeping them."""
+        elsewhere = self.views_elsewhere
+        if elsewhere is not None and (why := elsewhere.down() or elsewhere.error()):
+            return why
         return self.keeper.last_error
 
     def building_views(self) -> list[str]:
@@ -159,3 +213,18 @@ class WritePath:
         answer as the store would); None when they cannot stand in for the store (a clearing among them, or
         more than `limit` entries)."""
         return self.keeper.pending(self.applier.applied, limit)
+
+
+def _leaderships(settings: Settings, role: Role, in_memory: bool) -> tuple[Lead, Lead]:
+    """Who applies and who keeps the views, for a process of `role`. A process that does both holds one file
+    lock for both; where the views have a process of their own, the API process applies under that lock and the
+    views' process holds a lock of its own (so two of them never write the views at once)."""
+    if role is Role.VIEWS:
+        return Following("the API process"), Leadership(settings.data_dir / VIEWS_LOCK_FILE, "keeps the views current")
+    leader = Leadership(None if in_memory else settings.data_dir / LOCK_FILE)
+    apply = SharedLeadership(settings.state_url, "applier") if settings.state_url else leader
+    if role is Role.API:
+        if not settings.state_url:
+            leader.doing = "applies the journal"
+        return apply, Following("the views' process")
+    return apply, leader
