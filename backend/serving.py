@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any
 
 import uvicorn
 
+from segb_server.backend.collector import tune_collector
 from segb_server.backend.config import Settings
 from segb_server.backend.listening import CannotListen, Listener
 from segb_server.backend.views_process import ViewsHome, ViewsProcess, views_home
@@ -60,7 +61,9 @@ def worker_app() -> FastAPI:
 
     settings = Settings()
     configure_logging(settings)
-    return create_app(settings, views_home=views_home(settings, workers=True))
+    app = create_app(settings, views_home=views_home(settings, workers=True))
+    tune_collector()
+    return app
 
 
 class WorkersRefused(ValueError):
@@ -170,6 +173,7 @@ def serve(settings: Settings, *, api: bool, ui: bool, demo: bool, listening: Cal
         configs.append(uvicorn.Config(app, port=settings.api_port, **_options(settings)))
     if ui:
         configs.append(_ui_config(settings))
+    tune_collector()
     # uvicorn's own choice of loop (uvloop when installed), which `asyncio.run` would bypass.
     with asyncio.Runner(loop_factory=configs[0].get_loop_factory()) as runner:
         runner.run(

@@ -32,6 +32,7 @@ from multiprocessing.process import BaseProcess
 from pathlib import Path
 from typing import Any
 
+from segb_server.backend.collector import tune_collector
 from segb_server.backend.config import Settings
 from segb_server.backend.store.channel import ChannelAddress
 
@@ -216,6 +217,7 @@ def keep_views(settings: Settings, channel: ChannelAddress | None) -> None:
     writes = WritePath.open(settings, store, views.kept, views.housekeeping, Role.VIEWS)
     try:
         writes.start()
+        tune_collector()
         while True:
             status.write(writes.keeper.outage, writes.keeper.last_error)
             if stop.wait(HEARTBEAT_SECONDS):

@@ -116,6 +116,39 @@ def test_a_join_among_the_batch_is_the_stores(
     assert set(found) == set(expected)
 
 
+@settings(max_examples=600, deadline=None)
+@given(
+    older=st.lists(triple, max_size=6),
+    batch=st.lists(triple, min_size=1, max_size=14),
+    join=joins(),
+    relaxed=st.booleans(),
+    data=st.data(),
+)
+def test_what_a_join_is_told_without_following_it_holds_when_it_is_followed(
+    older: list[tuple[str, str, str]],
+    batch: list[tuple[str, str, str]],
+    join: tuple[list[Step], dict[str, frozenset[str]]],
+    relaxed: bool,
+    data: st.DataObject,
+) -> None:
+    """A join said to stay among fresh terms is followed among the batch's triples to the end, and a start value
+    `possible` leaves out has no solution in the store (relaxed or not, the join as written has none)."""
+    steps, narrowed = join
+    start = data.draw(st.sampled_from([term for s, _, o in batch for term in (s, o)] + NODES))
+    new = [row for row in dict.fromkeys(batch) if row not in set(older)]
+    store = Store()
+    store.extend([Quad(q.subject, q.predicate, q.object) for q in as_quads([*older, *new])])
+    mentioned = {term for s, _, o in older for term in (s, o)}
+    fresh = frozenset(term for s, _, o in new for term in (s, o) if term not in mentioned)
+    delta = Delta(as_quads(new), fresh)
+    out = sorted({v for step in steps for v in variables(step)} | {"?v0"})
+    compiled = DeltaJoin(steps, ["?v0"], out, narrowed, relaxed=relaxed)
+    if not relaxed and compiled.stays_fresh(delta, [start]):
+        assert compiled.run(delta, [start]) is not None
+    if start not in compiled.possible(delta, [start]):
+        assert list(store.query(sparql(steps, start, narrowed, out))) == []
+
+
 def test_a_step_from_a_term_the_store_held_before_gives_up() -> None:
     delta = Delta(as_quads([(NODES[0], PREDICATES[0], NODES[1])]), frozenset({NODES[0]}))
     forward = DeltaJoin([Pattern("?a", frozenset({PREDICATES[0]}), "?b", 0)], ["?a"], ["?b"])

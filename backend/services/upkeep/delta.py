@@ -53,6 +53,8 @@ class Delta:
         self._by_object: dict[str, dict[str, list[Fact]]] = {}  # predicate → object text → facts
         self._by_subject: dict[str, dict[str, list[Fact]]] = {}  # predicate → subject text → facts
         self.joins: dict[tuple[int, tuple[str, ...]], object] = {}  # a join's number and start → its answer
+        self._all_fresh: dict[tuple[tuple[str, ...], bool], bool] = {}
+        self._ends: dict[tuple[tuple[str, ...], bool, str | None], frozenset[str]] = {}
         self._answers: dict[str, object] = {}  # query text → the store's answer, for this batch
         self._answers_lock = threading.Lock()  # views of a remote store ask side by side
 
@@ -88,6 +90,30 @@ class Delta:
             facts = self.with_predicate(predicate)
             by_subject = self._by_subject[predicate] = _grouped(facts, lambda fact: fact.subject_text)
         return by_subject.get(subject_text, [])
+
+    def all_fresh(self, predicates: Sequence[str], *, subject: bool) -> bool:
+        """Whether every new triple with one of `predicates` has a fresh term as its subject (or object)."""
+        key = (tuple(predicates), subject)
+        known = self._all_fresh.get(key)
+        if known is None:
+            facts = (fact for predicate in predicates for fact in self.with_predicate(predicate))
+            known = self._all_fresh[key] = all(
+                (fact.subject_text if subject else fact.object_text) in self.fresh for fact in facts
+            )
+        return known
+
+    def ends(self, predicates: Sequence[str], *, subject: bool, other: str | None = None) -> frozenset[str]:
+        """The subjects (or objects) of the new triples with one of `predicates` (and `other` at their other end)."""
+        key = (tuple(predicates), subject, other)
+        known = self._ends.get(key)
+        if known is None:
+            facts = [fact for predicate in predicates for fact in self.with_predicate(predicate)]
+            known = self._ends[key] = frozenset(
+                (fact.subject_text if subject else fact.object_text)
+                for fact in facts
+                if other is None or (fact.object_text if subject else fact.subject_text) == other
+            )
+        return known
 
     def answer(self, query: str, ask: Callable[[str], Answer]) -> Answer:
         """The store's answer to `query`, asked once per batch whichever view asks first (`ask(query)`)."""

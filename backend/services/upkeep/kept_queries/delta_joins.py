@@ -26,7 +26,7 @@ solution then means the query has none for that key, whose evaluation the view s
 from __future__ import annotations
 
 import threading
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 from segb_server.backend.services.upkeep.delta import Delta, Fact
@@ -73,6 +73,16 @@ class _Hop:
 
 
 @dataclass(frozen=True)
+class _Found:
+    """Where a slot's value comes from: the start's values (`start`, an index), or the subject (or object) of the
+    batch's triples with one of `predicates` (the hop that bound it)."""
+
+    start: int = -1
+    predicates: tuple[str, ...] = ()
+    subject: bool = False
+
+
+@dataclass(frozen=True)
 class _Copy:
     """An alias: `target` takes `source`'s term (or, when already bound, must equal it)."""
 
@@ -99,6 +109,10 @@ class DeltaJoin:
         self._start_allowed = [allowed.get(variable) for variable in start]
         self._ops: list[_Hop | _Copy] = []
         slots = {variable: index for index, variable in enumerate(start)}
+        # What `stays_fresh` checks: for each hop, where the values it may step from come from (any one will do).
+        found = {index: _Found(start=index) for index in range(len(start))}
+        self._guards: list[tuple[_Found, ...]] = []
+        self._guarded = True  # false once a hop steps from a constant alone (a class, a hub: never fresh)
         # A literal is written in more than one way: only IRIs are compared as texts here, the rest by the store.
         self.usable = all(text.startswith("<") for values in allowed.values() for text in values)
         remaining = list(steps)
@@ -112,6 +126,8 @@ class DeltaJoin:
                 binds = step.target not in slots
                 target = slots.setdefault(step.target, len(slots))
                 self._ops.append(_Copy(slots[step.source], target, binds, allowed.get(step.target)))
+                if binds:
+                    found[target] = found[slots[step.source]]
                 continue
             literal = not step.object.startswith("?") and not step.object.startswith("<")
             if literal or (step.subject == step.object and step.subject not in slots):  # a literal; `?x p ?x`
@@ -119,11 +135,29 @@ class DeltaJoin:
                 continue
             subject = _end(step.subject, slots, allowed)
             object_ = _end(step.object, slots, allowed)
-            self._ops.append(_Hop(tuple(sorted(step.predicates)), subject, object_))
+            hop = _Hop(tuple(sorted(step.predicates)), subject, object_)
+            self._ops.append(hop)
+            guard = tuple(found[end.slot] for end in (subject, object_) if end.constant is None and not end.binds)
+            self._guards.append(guard)
+            self._guarded = self._guarded and bool(guard)
+            for end, is_subject in ((subject, True), (object_, False)):
+                if end.binds:
+                    found[end.slot] = _Found(predicates=hop.predicates, subject=is_subject)
         self._width = len(slots)
         self._out = [slots.get(variable, -1) for variable in out]
         if -1 in self._out:
             self.usable = False
+        # The hops with the first start variable at one end, and what is at the other when it is a constant: a
+        # fresh start value that no new triple has there can have no solution (`possible`)
+        self._from_start = [
+            (hop.predicates, end is hop.subject, other.constant)
+            for hop in self._ops
+            if isinstance(hop, _Hop)
+            for end, other in ((hop.subject, hop.object), (hop.object, hop.subject))
+            if start and end.slot == 0 and not end.binds and end.constant is None
+        ]
+        # Whether every `out` value is the subject or object of a triple a hop matched (not one an alias copied)
+        self.hop_binds_out = self.usable and all(found[slot].start < 0 and found[slot].predicates for slot in self._out)
         signature = (tuple(self._ops), tuple(self._out), tuple(self._start_allowed), self._width, relaxed, self.usable)
         self.shape = _shape_of(signature)
 
@@ -140,6 +174,36 @@ class DeltaJoin:
         found = self._run(delta, values)
         delta.joins[key] = found  # views asking side by side may both work it out: the same answer
         return found
+
+    def possible(self, delta: Delta, starts: Iterable[str]) -> list[str]:
+        """Of the values of the (first) start variable, those the join may find a solution from: all but the fresh
+        ones some hop from the start finds no new triple for (every triple about a fresh term is new). One set
+        operation a hop for a whole batch, where `run` would follow the join from each value."""
+        fresh = delta.fresh
+        possible = list(starts)
+        for predicates, subject, other in self._from_start if self.usable and fresh else ():
+            there = delta.ends(predicates, subject=subject, other=other)
+            possible = [value for value in possible if value in there or value not in fresh]
+        return possible
+
+    def stays_fresh(self, delta: Delta, values: Sequence[str]) -> bool:
+        """Whether following the join from `values` is sure to step only from fresh terms, told without following
+        it: each hop's start is among the start's `values` that are fresh, or is bound by an earlier hop from the
+        batch's triples of predicates whose terms there are all fresh. Every triple such a join matches is then
+        one of the batch's."""
+        if not (self.usable and self._guarded and delta.fresh):
+            return False
+        for guard in self._guards:
+            for source in guard:
+                if (
+                    values[source.start] in delta.fresh
+                    if source.start >= 0
+                    else delta.all_fresh(source.predicates, subject=source.subject)
+                ):
+                    break
+            else:
+                return False
+        return True
 
     def _run(self, delta: Delta, values: Sequence[str]) -> list[tuple[str, ...]] | None:
         for value, allowed in zip(values, self._start_allowed, strict=True):

@@ -79,6 +79,16 @@ class KeyFinder:
         for lead in self._leads:  # compiled now, in one thread, rather than by the first batch's views at once
             for chain, _, _ in lead.routes:
                 chain.join  # noqa: B018
+        # The chains whose every unit, when the chain goes from the batch's own resources only, is found by another
+        # lead anyway: such a chain ends with a triple that names the unit, a triple the batch holds (it is about a
+        # fresh term) and which the pattern naming the unit matches. Followed or asked, it would add nothing.
+        naming = {lead.match.pattern for lead in self._leads if not lead.chains}  # the leads that name the unit
+        self._covered = {
+            chain
+            for lead in self._leads
+            for chain in lead.chains
+            if chain.join.hop_binds_out and any(link in naming for link in chain.links if isinstance(link, Pattern))
+        }
 
     def units(self, delta: Delta, store: Store) -> set[str]:
         units: set[str] = set()
@@ -101,7 +111,10 @@ class KeyFinder:
                         rows[origin] = rows.get(origin, False) or literal
         asked: dict[_Chain, list[tuple[str, bool]]] = {}  # the VALUES rows of each chain the store is asked
         for chain, rows in rows_by_chain.items():
+            covered = chain in self._covered
             for origin, literal in rows.items():
+                if covered and chain.join.stays_fresh(delta, origin):
+                    continue  # every unit it reaches is named by one of the batch's triples, found above
                 # A chain from the batch's own resources is followed among its triples (`delta_joins.py`).
                 found = chain.join.run(delta, origin)
                 if found is None:

@@ -156,7 +156,7 @@ class KeptQuery:
         if delta:
             # A key the batch introduced whose rows would need a triple the batch lacks had none before it (no
             # triple named it) and has none now: nothing to evaluate, replace or announce.
-            units = self.keys.units(delta, self.store)
+            units = self._needed.possible(delta, self.keys.units(delta, self.store))
             replaced = sorted(unit for unit in units if self._needed.run(delta, [unit]) != [])
             rows = self._evaluate(replaced) if replaced else {}
             facets = [(pairs.facet, new) for pairs in self.facets if (new := pairs.new_pairs(delta, self.store))]
