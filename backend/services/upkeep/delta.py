@@ -56,6 +56,7 @@ class Delta:
         self._all_fresh: dict[tuple[tuple[str, ...], bool], bool] = {}
         self._ends: dict[tuple[tuple[str, ...], bool, str | None], frozenset[str]] = {}
         self._answers: dict[str, object] = {}  # query text → the store's answer, for this batch
+        self._shared: dict[object, object] = {}  # what views with the same question worked out, for this batch
         self._answers_lock = threading.Lock()  # views of a remote store ask side by side
 
     @classmethod
@@ -114,6 +115,16 @@ class Delta:
                 if other is None or (fact.object_text if subject else fact.subject_text) == other
             )
         return known
+
+    def shared(self, key: object, work: Callable[[], Answer]) -> Answer:
+        """`work()`'s answer, worked out once per batch for every view with the same `key` (views asking side by
+        side may both work it out: the same answer)."""
+        with self._answers_lock:
+            if key in self._shared:
+                return self._shared[key]  # type: ignore[return-value]
+        found = work()
+        with self._answers_lock:
+            return self._shared.setdefault(key, found)  # type: ignore[return-value]
 
     def answer(self, query: str, ask: Callable[[str], Answer]) -> Answer:
         """The store's answer to `query`, asked once per batch whichever view asks first (`ask(query)`)."""

@@ -19,8 +19,9 @@ from __future__ import annotations
 
 import hashlib
 import threading
+import time
 import zlib
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
 
@@ -46,6 +47,7 @@ from segb_server.backend.state.database import Database
 
 EMPTY_SHA256 = hashlib.sha256(b"").hexdigest()
 _ROWS_PER_INSERT = 400  # digests per INSERT statement (SQLite allows 32,766 parameters)
+RECORDED_KEPT = 20_000  # this process's latest entries whose recording time is kept in memory (`age_of`)
 FREE_BYTES_NEEDED = 1 << 20  # below this much free space, readiness reports the journal as not writable
 
 SCHEMA = """
@@ -125,6 +127,10 @@ class Journal(JournalReads):
         self._known = KnownDigests()
         self._known_epoch = -1
         self.storage_problem: str | None = None  # why the last write failed for want of space, until one works
+        # When this process recorded its latest entries (sequence → epoch seconds): how long the oldest entry the
+        # views miss has waited is asked every few posts (posts wait for the views), and is then told from
+        # memory, not read under the journal's lock, which the posts' own writes hold
+        self._recorded: dict[int, float] = {}
         self._any_erased: bool | None = None  # whether erased_triples holds any digest (None: not read yet)
         with self._lock:
             database.script(SCHEMA)
@@ -162,6 +168,7 @@ class Journal(JournalReads):
                     outcomes.append(receipt)
                     held_back.append(withheld)
                 self._check_size()
+            self._remember_recorded(outcome.sequence for outcome in outcomes if isinstance(outcome, Receipt))
             # Committed: only now may the cache say these triples are in the journal (those held back are not:
             # the next post re-sending them is told again).
             for post, outcome in zip(posts, outcomes, strict=True):
@@ -176,7 +183,16 @@ class Journal(JournalReads):
         with self._lock, self._storage_errors():
             receipt, epoch = self._clear(log_id, user, claimed_user)
             self._known, self._known_epoch = KnownDigests(), epoch
+            self._remember_recorded([receipt.sequence])
         return receipt
+
+    def _remember_recorded(self, sequences: Iterable[int]) -> None:
+        """Under the lock, once committed: these entries were recorded now (the oldest forgotten past a bound)."""
+        now = time.time()
+        for sequence in sequences:
+            self._recorded[sequence] = now
+        while len(self._recorded) > RECORDED_KEPT:
+            del self._recorded[next(iter(self._recorded))]  # the oldest: a dict keeps its insertion order
 
     @contextmanager
     def posts_held(self) -> Iterator[None]:

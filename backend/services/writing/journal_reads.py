@@ -5,6 +5,7 @@ every caller under the journal's one lock."""
 from __future__ import annotations
 
 import threading
+import time
 import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -35,6 +36,7 @@ class JournalReads:
 
     database: Database
     _lock: threading.Lock
+    _recorded: dict[int, float]  # the journal's own latest entries: when this process recorded them
 
     def page(self, limit: int, offset: int) -> tuple[list[Receipt], int]:
         """Receipts newest first, and how many there are in all."""
@@ -58,6 +60,9 @@ class JournalReads:
 
     def age_of(self, sequence: int) -> float:
         """Seconds since entry `sequence` was recorded (0 if there is no such entry)."""
+        known = self._recorded.get(sequence)
+        if known is not None:
+            return max(0.0, time.time() - known)
         with self._lock:
             row = self.database.execute("SELECT recorded_at FROM receipts WHERE sequence = ?", (sequence,))
             found = row.fetchone()

@@ -30,6 +30,16 @@ class FacetPairs:
         self.facet = facet
         self.parameter = f"?{PARAMETER_VARIABLE_PREFIX}{facet.parameter}"
         self._matches = [(PatternMatch(plan, pattern), body) for body in facet.bodies for pattern in body]
+        # What the pairs depend on: the anchor, and each body's patterns and the values its groups allow
+        self._signature = (
+            "facet",
+            facet.anchor,
+            tuple(
+                (tuple((p.subject, tuple(sorted(p.predicates)), p.object) for p in body),
+                 tuple(sorted(_allowed(plan, body).items())))
+                for body in facet.bodies
+            ),
+        )  # fmt: skip
         # Each body from each of its patterns, as followed among a batch's triples (`delta_joins.py`).
         self._joins = {
             (match.pattern, body): DeltaJoin(
@@ -46,6 +56,11 @@ class FacetPairs:
         return sorted({pair for body in self.facet.bodies for pair in self._pairs(store, body, "")})
 
     def new_pairs(self, delta: Delta, store: Store) -> list[tuple[str, str]]:
+        """The pairs in which one of the new triples takes part: worked out once a batch for every kept query with
+        the same filter (the timeline's kinds of activity share theirs)."""
+        return delta.shared(self._signature, lambda: self._new_pairs(delta, store))
+
+    def _new_pairs(self, delta: Delta, store: Store) -> list[tuple[str, str]]:
         """The pairs in which one of the new triples (just added to the store) takes part: one branch per body
         pattern the triples match, bound to them, asked together (BRANCHES_PER_QUERY a query). Kept queries
         sharing a filter (the reports and the timeline's kinds filter by the same robot and human) ask the same

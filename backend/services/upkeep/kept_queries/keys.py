@@ -10,6 +10,7 @@ the units of this one triple.
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Set as AbstractSet
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -51,6 +52,15 @@ class PatternMatch:
                     continue
                 found.append(fact)
         return found
+
+    def texts(self, delta: Delta, variable: str) -> AbstractSet[str]:
+        """The texts `variable` takes in the new triples this pattern matches: for most patterns a set the batch
+        makes once for every view that asks (`Delta.ends`)."""
+        subject = variable == self.pattern.subject
+        plain = self._subject is None and self._subjects is None and self._objects is None
+        if plain and self.pattern.subject != self.pattern.object:
+            return delta.ends(self._predicates, subject=subject, other=self._object)
+        return {self.text(fact, variable) for fact in self.facts(delta)}
 
     def text(self, fact: Fact, variable: str) -> str:
         """The N-Triples text `variable` takes when this pattern matches `fact`."""
@@ -96,11 +106,11 @@ class KeyFinder:
         # (an activity's type, robot, time, …) share their chains, and each row is asked once for all of them.
         rows_by_chain: dict[_Chain, dict[tuple[str, ...], bool]] = {}  # a chain's start → whether it binds a literal
         for lead in self._leads:
+            if not lead.chains:
+                units |= lead.match.texts(delta, self.target)
+                continue
             facts = lead.match.facts(delta)
             if not facts:
-                continue
-            if not lead.chains:
-                units.update(lead.match.text(fact, self.target) for fact in facts)
                 continue
             for chain, picks, object_named in lead.routes:
                 rows = rows_by_chain.setdefault(chain, {})
