@@ -65,7 +65,7 @@ class Settings(BaseSettings):
         10.0, gt=0, description="With INGEST_ACK=store, how long a post waits for the store before a 503."
     )
     views_max_lag_seconds: float = Field(
-        2.0,
+        1.5,
         ge=0,
         description="While the reports are further behind than this (seconds), a post's answer waits for them, so "
         "robots slow down to the pace the views keep (0 = answers never wait).",

@@ -46,7 +46,7 @@ from segb_server.backend.store.base import Store
 from segb_server.backend.store.channel import StoreChannel
 from segb_server.backend.store.factory import open_store
 from segb_server.backend.store.oxigraph import OxigraphStore
-from segb_server.backend.views_process import ViewsHome, ViewsProcess, ViewsStatus
+from segb_server.backend.views_process import CHANNEL_NICENESS, ViewsHome, ViewsProcess, ViewsStatus
 
 logger = logging.getLogger("segb.api")
 
@@ -104,7 +104,7 @@ def create_app(
             app.state.services.writes.views_elsewhere = ViewsStatus(settings.data_dir)
         # The embedded store is read by the views' process through this one (RocksDB lets one process open it).
         channel = (
-            StoreChannel(active_store)
+            StoreChannel(active_store, niceness=CHANNEL_NICENESS)
             if views_home is ViewsHome.CHILD and isinstance(active_store, OxigraphStore)
             else None
         )

@@ -20,6 +20,7 @@ import os
 import secrets
 import shutil
 import socket
+import sys
 import tempfile
 import threading
 from collections.abc import Iterator, Sequence
@@ -70,10 +71,12 @@ class ChannelAddress:
 
 
 class StoreChannel:
-    """Serves `store`'s reads to this server's other processes, until closed."""
+    """Serves `store`'s reads to this server's other processes, until closed. `niceness`: how much lower than
+    this process's own threads the serving threads run (Linux, where a thread has a priority of its own)."""
 
-    def __init__(self, store: Store) -> None:
+    def __init__(self, store: Store, *, niceness: int = 0) -> None:
         self.store = store
+        self.niceness = niceness
         self._folder = tempfile.mkdtemp(prefix="segb-store-")  # 0700: this user's alone
         path = str(Path(self._folder) / "store.sock")  # a short path: a Unix socket's is at most 107 bytes
         self.address = ChannelAddress(path, secrets.token_bytes(32), store.kind, store.graph_uri, store.wraps_values)
@@ -109,6 +112,9 @@ class StoreChannel:
             threading.Thread(target=self._serve, args=(connection,), name="segb-store-reader", daemon=True).start()
 
     def _serve(self, connection: Connection) -> None:
+        if self.niceness and sys.platform == "linux":  # elsewhere the call would lower the whole process
+            with contextlib.suppress(OSError):
+                os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), self.niceness)
         try:
             while True:
                 request = connection.recv_bytes()

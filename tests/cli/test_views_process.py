@@ -18,7 +18,7 @@ import httpx
 import pytest
 from semantic_log_generator import SEGBPublisher
 
-from segb_server.backend.views_process import STATUS_FILE
+from segb_server.backend.views_process import NICENESS, STATUS_FILE
 from segb_server.examples.receptionist import log_visit, receptionist
 from tests.cli.test_cli import SEGB, clean_env, wait_for
 from tests.support.net import free_port
@@ -76,6 +76,10 @@ def parent_of(pid: int) -> int:
     return int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[1])
 
 
+def niceness_of(pid: int) -> int:
+    return int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[16])
+
+
 def alive(pid: int) -> bool:
     try:
         state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
@@ -93,8 +97,9 @@ def messages(url: str) -> set[str]:
 def test_the_views_are_kept_by_a_process_of_their_own_and_the_reports_follow_the_robots(tmp_path: Path) -> None:
     data = tmp_path / "data"
     with serving(data) as (server, url):
-        pid = eventually(lambda: views_pid(data))
-        assert pid != server.pid and parent_of(int(pid)) == server.pid  # type: ignore[arg-type]
+        pid = int(eventually(lambda: views_pid(data)))  # type: ignore[arg-type]
+        assert pid != server.pid and parent_of(pid) == server.pid
+        assert niceness_of(pid) == niceness_of(server.pid) + NICENESS  # below the requests' priority
         said = visits(url, 0, 3)
         eventually(lambda: said <= messages(url))
         ready = httpx.get(f"{url}/healthz/ready", timeout=10).json()

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import os
 import stat
+import sys
+import threading
 from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
 from multiprocessing.connection import AuthenticationError, Client
@@ -104,6 +106,24 @@ def test_the_socket_is_this_users_alone_and_a_caller_without_the_key_is_refused(
     with pytest.raises(AuthenticationError):
         Client(channel.address.path, family="AF_UNIX", authkey=b"not the key")
     assert reader.count() == 250  # the channel serves on
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="a thread has a priority of its own on Linux")
+def test_the_channel_answers_below_this_process_priority(tmp_path: Path) -> None:
+    store = OxigraphStore("urn:segb:events", tmp_path / "store")
+    channel = StoreChannel(store, niceness=7)
+    reader = ChannelStore(channel.address)
+    try:
+        assert reader.count() == 0  # a connection, and its serving thread
+        serving = [thread for thread in threading.enumerate() if thread.name == "segb-store-reader"]
+        assert serving
+        for thread in serving:
+            stat = Path(f"/proc/self/task/{thread.native_id}/stat").read_text()
+            assert int(stat.rsplit(")", 1)[1].split()[16]) == os.getpriority(os.PRIO_PROCESS, 0) + 7
+    finally:
+        reader.close()
+        channel.close()
+        store.close()
 
 
 def test_a_closed_channel_is_an_unavailable_store(tmp_path: Path) -> None:
