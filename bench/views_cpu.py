@@ -31,6 +31,7 @@ from pyoxigraph import RdfFormat
 
 from bench.measure import machine
 from bench.one_robot import OneRobot, one_robot
+from segb_server.backend.collector import tune_collector
 from segb_server.backend.config import Settings
 from segb_server.backend.services.container import Services, build_services
 from segb_server.backend.services.ingest.payloads import RdfPayload
@@ -141,6 +142,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--rounds", type=int, default=ROUNDS, help="rounds each way (views on, then off)")
     args = parser.parse_args(argv)
     robot = one_robot()
+    tune_collector()  # as `segb serve` runs its processes
     rounds: list[Round] = []
     with tempfile.TemporaryDirectory(prefix="segb-views-cpu-") as root:
         for number in range(args.rounds):
