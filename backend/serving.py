@@ -5,9 +5,9 @@ any that dies); the kernel spreads connections over them. Each worker builds its
 the settings given on the command line are handed down as environment variables. Every worker accepts posts
 (the journal's SQLite transactions keep one hash chain) and serves reads; one of them, the holder of the
 leadership lock (services/ops/leadership.py), also applies the journal and keeps the views current. Only a
-remote store can be shared so: the embedded store is opened by one process. The views are kept by a process of
-their own in either case (VIEWS_PROCESS, `backend/views_process.py`): started by the one API process, or by the
-supervisor of the workers.
+remote store can be shared so: the embedded store is opened by one process. With the embedded store the views
+are kept by a process of their own that the one API process starts (VIEWS_PROCESS, `backend/views_process.py`);
+with VIEWS_PROCESS=true on a remote store, by one the supervisor of the workers starts.
 """
 
 from __future__ import annotations

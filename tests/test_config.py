@@ -8,6 +8,7 @@ import pytest
 from pydantic import ValidationError
 
 from segb_server.backend.config import Settings
+from segb_server.backend.views_process import views_home
 from tests.conftest import make_settings
 
 README = (Path(__file__).resolve().parents[1] / "README.md").read_text()
@@ -55,3 +56,27 @@ def test_a_retention_past_the_calendar_is_refused_with_its_bound() -> None:
     with pytest.raises(ValidationError, match="less than or equal to 36525"):
         make_settings(retention_days=3_000_000)
     assert make_settings(retention_days=36_525).retention_days == 36_525
+
+
+@pytest.mark.parametrize(
+    ("store", "views_process", "workers", "home"),
+    [
+        ("oxigraph", None, False, "child"),  # the embedded store: the views run beside the API process
+        ("virtuoso", None, True, "this"),  # a remote store: the leading worker keeps them
+        ("sparql", None, False, "this"),
+        ("virtuoso", True, True, "sibling"),  # asked for: beside the workers
+        ("oxigraph", False, False, "this"),
+        ("memory", True, False, "this"),  # nothing another process could read
+    ],
+)
+def test_where_the_views_are_kept_by_default_depends_on_the_store(
+    store: str, views_process: bool | None, workers: bool, home: str
+) -> None:
+    settings = make_settings(store=store, views_process=views_process, virtuoso_password="a-password")
+    assert views_home(settings, workers=workers).value == home
+
+
+def test_posts_wait_for_the_views_sooner_on_the_embedded_store() -> None:
+    assert make_settings(store="oxigraph").effective_views_max_lag_seconds == 1.5
+    assert make_settings(store="virtuoso", virtuoso_password="a-password").effective_views_max_lag_seconds == 2.0
+    assert make_settings(store="sparql", views_max_lag_seconds=0.0).effective_views_max_lag_seconds == 0.0

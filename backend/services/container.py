@@ -225,7 +225,7 @@ def build_services(
             apply_timeout=settings.ingest_apply_timeout_seconds,
             max_backlog=settings.journal_max_backlog,
         ),
-        views_pace=ViewsPace(writes, settings.views_max_lag_seconds, settings.views_max_hold_seconds),
+        views_pace=ViewsPace(writes, settings.effective_views_max_lag_seconds, settings.views_max_hold_seconds),
         reports=ReportService(catalog, store, cache, kept_reports, lag=writes.lag),
         findings=findings,
         timeline=TimelineService([*timeline, FindingSource(findings)], kept_timeline.rows.last_change),

@@ -52,6 +52,7 @@ def api_on_oxigraph_server(oxigraph_server: str, tmp_path: Path) -> Iterator[str
         "STORE": "sparql",
         "SPARQL_QUERY_ENDPOINT": f"{oxigraph_server}/query",
         "SPARQL_UPDATE_ENDPOINT": f"{oxigraph_server}/update",
+        "VIEWS_PROCESS": "true",  # off by default on a remote store: asked for, the views run beside the workers
     }
     command = ["serve", "--only", "api", "--workers", "2", "--data-dir", str(tmp_path / "data")]
     argv = [*SEGB, *command, "--api-port", str(port)]
