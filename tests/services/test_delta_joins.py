@@ -80,6 +80,17 @@ def sparql(steps: list[Step], start: str, narrowed: dict[str, frozenset[str]], o
     return f"SELECT {' '.join(out)} WHERE {{ VALUES ?v0 {{ {start} }} {' '.join(body)} {values}}}"
 
 
+def store_and_batch(older: list[tuple[str, str, str]], batch: list[tuple[str, str, str]]) -> tuple[Store, Delta]:
+    """A store holding the older triples and the batch's, and the batch as the views are told it: its triples the
+    store did not hold, and the terms no older triple mentions (fresh)."""
+    new = [row for row in dict.fromkeys(batch) if row not in set(older)]
+    store = Store()
+    store.extend([Quad(q.subject, q.predicate, q.object) for q in as_quads([*older, *new])])
+    mentioned = {term for s, _, o in older for term in (s, o)}
+    fresh = frozenset(term for s, _, o in new for term in (s, o) if term not in mentioned)
+    return store, Delta(as_quads(new), fresh)
+
+
 @settings(max_examples=600, deadline=None)
 @given(
     older=st.lists(triple, max_size=6),
@@ -95,12 +106,7 @@ def test_a_join_among_the_batch_is_the_stores(
 ) -> None:
     steps, narrowed = join
     start = data.draw(st.sampled_from([term for s, _, o in batch for term in (s, o)]))  # mostly fresh
-    new = [row for row in dict.fromkeys(batch) if row not in set(older)]
-    store = Store()
-    store.extend([Quad(q.subject, q.predicate, q.object) for q in as_quads([*older, *new])])
-    mentioned = {term for s, _, o in older for term in (s, o)}
-    fresh = frozenset(term for s, _, o in new for term in (s, o) if term not in mentioned)
-    delta = Delta(as_quads(new), fresh)
+    store, delta = store_and_batch(older, batch)
     out = sorted(
         {v for step in steps for v in ((step.source, step.target) if isinstance(step, Alias) else step.variables())}
         | {"?v0"}
@@ -135,12 +141,7 @@ def test_what_a_join_is_told_without_following_it_holds_when_it_is_followed(
     `possible` leaves out has no solution in the store (relaxed or not, the join as written has none)."""
     steps, narrowed = join
     start = data.draw(st.sampled_from([term for s, _, o in batch for term in (s, o)] + NODES))
-    new = [row for row in dict.fromkeys(batch) if row not in set(older)]
-    store = Store()
-    store.extend([Quad(q.subject, q.predicate, q.object) for q in as_quads([*older, *new])])
-    mentioned = {term for s, _, o in older for term in (s, o)}
-    fresh = frozenset(term for s, _, o in new for term in (s, o) if term not in mentioned)
-    delta = Delta(as_quads(new), fresh)
+    store, delta = store_and_batch(older, batch)
     out = sorted({v for step in steps for v in variables(step)} | {"?v0"})
     compiled = DeltaJoin(steps, ["?v0"], out, narrowed, relaxed=relaxed)
     if not relaxed and compiled.stays_fresh(delta, [start]):
