@@ -252,7 +252,12 @@ class Settings(BaseSettings):
     def effective_ingest_ack(self) -> Literal["journal", "store"]:
         if self.ingest_ack != "auto":
             return self.ingest_ack
-        return "store" if self.store in ("oxigraph", "memory") else "journal"
+        return "store" if self.store_is_local else "journal"
+
+    @property
+    def store_is_local(self) -> bool:
+        """The store lives in this server's process (embedded on disk, or in memory), not behind an endpoint."""
+        return self.store in ("oxigraph", "memory")
 
     @property
     def effective_views_max_lag_seconds(self) -> float:
@@ -263,7 +268,7 @@ class Settings(BaseSettings):
         remote one (the soak's bounds)."""
         if self.views_max_lag_seconds is not None:
             return self.views_max_lag_seconds
-        return 1.5 if self.store in ("oxigraph", "memory") else 2.0
+        return 1.5 if self.store_is_local else 2.0
 
     @property
     def auth_enabled(self) -> bool:

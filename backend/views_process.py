@@ -72,7 +72,7 @@ def views_home(settings: Settings, *, workers: bool) -> ViewsHome:
     """Where `segb serve` keeps the views: in a process of their own unless VIEWS_PROCESS or KEEP_VIEWS is off, or
     the store lives in this process's memory (nothing another process could read). VIEWS_PROCESS unset: on the
     embedded store only. There the views' Python no longer shares the requests' interpreter (one robot's soak: 114
-    posts/s against 100 over 15 minutes); on Virtuoso the views in a process of their own, below the requests'
+    and 119 posts/s against 100 over 15 minutes); on Virtuoso the views in a process of their own, below the requests'
     priority, fell further behind and the posts waited for them (38 posts/s against 75 with the leading worker
     keeping them: docs/scaling.md)."""
     wanted = settings.store == "oxigraph" if settings.views_process is None else settings.views_process
