@@ -95,10 +95,11 @@ class ViewsStatus:
 
     # --- the views' process ------------------------------------------------------------------------------
 
-    def write(self, outage: str | None, error: str | None) -> None:
+    def write(self, outage: str | None, error: str | None, building_all: bool = False) -> None:
         """The views' process is alive; `outage`: the store or the views' storage away (every view waits);
-        `error`: what readiness tells (the outage, or why views set aside are not built)."""
-        record = {"pid": os.getpid(), "at": time.time(), "outage": outage, "error": error}
+        `error`: what readiness tells (the outage, or why views set aside are not built); `building_all`: every
+        view is being built from the store (at start, or after an erasure)."""
+        record = {"pid": os.getpid(), "at": time.time(), "outage": outage, "error": error, "building_all": building_all}
         temporary = self.path.with_name(f".{self.path.name}.{os.getpid()}")
         temporary.write_text(json.dumps(record))
         os.replace(temporary, self.path)  # a reader sees the old record or the new one, whole
@@ -126,6 +127,10 @@ class ViewsStatus:
     def error(self) -> str | None:
         record = self._record()
         return None if record is None else record.get("error")
+
+    def building_all(self) -> bool:
+        record = self._record()
+        return record is not None and bool(record.get("building_all"))
 
     def _record(self) -> dict[str, Any] | None:
         with self._lock:
@@ -235,7 +240,7 @@ def keep_views(settings: Settings, channel: ChannelAddress | None) -> None:
         writes.start()
         tune_collector()
         while True:
-            status.write(writes.keeper.outage, writes.keeper.last_error)
+            status.write(writes.keeper.outage, writes.keeper.last_error, writes.keeper.building_all)
             if stop.wait(HEARTBEAT_SECONDS):
                 break
     finally:

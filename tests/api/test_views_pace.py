@@ -6,6 +6,7 @@ views' keeper waits for it as it would for a slow view."""
 
 from __future__ import annotations
 
+import asyncio
 import sqlite3
 import threading
 import time
@@ -14,8 +15,10 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import httpx
+import pytest
 
 from segb_server.backend.api.app import create_app
+from segb_server.backend.services.writing.views_pace import ViewsPace
 from tests.conftest import make_settings
 from tests.support.live_server import LiveServer
 from tests.support.settle import kept_rows, settle
@@ -102,3 +105,34 @@ def test_an_answer_waits_no_longer_than_the_longest_hold(tmp_path: Path) -> None
 
 def test_with_no_bound_an_answer_never_waits_for_the_reports(tmp_path: Path) -> None:
     assert answer_seconds_while_behind(tmp_path, max_lag=0, max_hold=30) < 1.0
+
+
+class Progress:
+    """The views' progress as the pace reads it: far behind, and possibly failing or being built in full."""
+
+    def __init__(self, *, failing: bool = False, building_all: bool = False) -> None:
+        self.failing, self.building = failing, building_all
+
+    def views_behind(self) -> int:
+        return 50
+
+    def views_lag_seconds(self) -> float:
+        return 60.0
+
+    def views_failing(self) -> bool:
+        return self.failing
+
+    def views_building_all(self) -> bool:
+        return self.building
+
+
+@pytest.mark.parametrize(
+    ("progress", "holds"),
+    [(Progress(), True), (Progress(failing=True), False), (Progress(building_all=True), False)],
+    ids=["behind", "failing", "built-again-from-the-store"],
+)
+def test_an_answer_waits_only_while_waiting_lets_the_views_catch_up(progress: Progress, holds: bool) -> None:
+    """A minute behind: a post waits for the views' upkeep, but not for a keeper retrying an outage, nor while
+    every view is built again from the store (after an erasure: minutes on a big store, which posts do not slow)."""
+    waited = asyncio.run(ViewsPace(progress, max_lag_seconds=1.0, max_hold_seconds=0.5).hold())
+    assert (waited >= 0.5) is holds, waited

@@ -180,6 +180,9 @@ class ViewKeeper:
         self._thread: threading.Thread | None = None
         self._stopping = threading.Event()  # ends retry waits too: a store that never returns must not hold shutdown
         self.outage: str | None = None  # the error of the store or state being retried (all views wait)
+        # Every view is being built from the store (at start, or again after an erasure): their lag is that build's,
+        # not posts outpacing their upkeep. Written by the keeper's thread, read by requests.
+        self.building_all = False
         # view → the error its last build failed with. Written by the keeper's thread, read by requests (readiness):
         # replaced, never changed in place, so a reader always holds a whole one.
         self._set_aside: dict[str, str] = {}
@@ -282,12 +285,15 @@ class ViewKeeper:
                 return
         while True:
             try:
+                self.building_all = True
                 self._prepare_all()
                 self.outage = None
                 break
             except OUTAGES as error:
                 self.outage = str(error)
                 logger.warning("building the views failed (%s); retrying", error)
+            finally:
+                self.building_all = False
             if self._stopping.wait(2):
                 return
         if self._housekeeping is not None:
@@ -591,7 +597,11 @@ class ViewKeeper:
         if cleared >= 0:
             at = steps[cleared].entries[-1].sequence
             if steps[cleared].erased:  # triples went: the views are made again from the store
-                at = self._rebuild_all(at)
+                self.building_all = True
+                try:
+                    at = self._rebuild_all(at)
+                finally:
+                    self.building_all = False
             else:
                 for view in self.views:
                     view.clear(at)

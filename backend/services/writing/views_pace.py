@@ -9,7 +9,9 @@ without end: the reports then show what robots did minutes ago.
 So while the views are further behind than VIEWS_MAX_LAG_SECONDS (the oldest entry they miss has waited that
 long), a post's answer waits, VIEWS_MAX_HOLD_SECONDS at most. It is never refused — the post is already kept —
 and robots, which wait for each answer before their next post, post at the pace the views keep. Nothing waits
-while the views are failing (their keeper retrying an error): waiting would not make them faster.
+while the views are failing (their keeper retrying an error) or while every view is being built from the store
+(at start, or again after an erasure: minutes on a big store): waiting would not make them faster, and the posts
+they then miss are caught up in batches afterwards.
 """
 
 from __future__ import annotations
@@ -30,6 +32,8 @@ class ViewsProgress(Protocol):
     def views_lag_seconds(self) -> float: ...  # how long the oldest of them has waited (reads the journal)
 
     def views_failing(self) -> bool: ...
+
+    def views_building_all(self) -> bool: ...  # every view being built from the store (at start, after an erasure)
 
 
 class ViewsPace:
@@ -65,7 +69,9 @@ class ViewsPace:
 
     def _look(self) -> bool:
         try:
-            return not self._progress.views_failing() and self._progress.views_lag_seconds() > self.max_lag_seconds
+            if self._progress.views_failing() or self._progress.views_building_all():
+                return False
+            return self._progress.views_lag_seconds() > self.max_lag_seconds
         except Exception as error:  # the post is kept already: a failed look must not fail its answer
             logger.warning("could not read how far the views are behind (%s); the post is answered", error)
             return False

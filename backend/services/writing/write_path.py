@@ -57,6 +57,9 @@ class ViewsElsewhere(Protocol):
     def error(self) -> str | None:
         """What readiness tells of its views: the outage, or why views set aside are not built."""
 
+    def building_all(self) -> bool:
+        """Every view is being built from the store there (at start, or after an erasure)."""
+
 
 @dataclass(frozen=True)
 class Lag:
@@ -195,6 +198,12 @@ class WritePath:
         return self.keeper.outage is not None or (
             elsewhere is not None and (elsewhere.down() is not None or elsewhere.outage() is not None)
         )
+
+    def views_building_all(self) -> bool:
+        """Every view is being built from the store (at start, or again after an erasure), here or in the views'
+        own process: how far behind they are is that build's doing, not posts outpacing their upkeep."""
+        elsewhere = self.views_elsewhere
+        return self.keeper.building_all or (elsewhere is not None and elsewhere.building_all())
 
     def views_error(self) -> str | None:
         """The error the views' keeper is retrying, if it is: an outage, or why views set aside are not built;
