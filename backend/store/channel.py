@@ -3,8 +3,10 @@
 RocksDB lets one process open the embedded store. `segb serve` keeps the views in a process of their own
 (`backend/views_process.py`), so the requests' interpreter never waits for the views' Python; that process
 reads the store through the API process that opened it. `StoreChannel` serves the store's reads there: a Unix
-socket in a private temporary directory (mode 0700), each connection authenticated with a random key both
-processes hold (multiprocessing.connection's HMAC handshake), one thread per connection. `ChannelStore` is the
+socket, each connection authenticated with a random key both processes hold (multiprocessing.connection's HMAC
+handshake), one thread per connection. On Linux the socket has an abstract name: no file, so a server killed
+with SIGKILL leaves nothing behind; elsewhere it is a file in a private temporary directory (mode 0700), removed
+when the channel closes. `ChannelStore` is the
 `Store` the other process uses, one connection per thread that reads.
 
 An answer is the store's own, evaluated and written as SPARQL JSON (or N-Triples for a CONSTRUCT) by pyoxigraph
@@ -77,23 +79,34 @@ class StoreChannel:
     def __init__(self, store: Store, *, niceness: int = 0) -> None:
         self.store = store
         self.niceness = niceness
-        self._folder = tempfile.mkdtemp(prefix="segb-store-")  # 0700: this user's alone
-        path = str(Path(self._folder) / "store.sock")  # a short path: a Unix socket's is at most 107 bytes
+        self._folder: str | None = None
+        if sys.platform == "linux":  # the key, not the name, keeps other local users out
+            path = f"\0segb-store-{os.getpid()}-{secrets.token_hex(8)}"
+        else:
+            self._folder = tempfile.mkdtemp(prefix="segb-store-")  # 0700: this user's alone
+            path = str(Path(self._folder) / "store.sock")  # a short path: a Unix socket's is at most 107 bytes
         self.address = ChannelAddress(path, secrets.token_bytes(32), store.kind, store.graph_uri, store.wraps_values)
         self._listener = Listener(path, family="AF_UNIX", authkey=self.address.key)
         self._connections: list[Connection] = []
         self._lock = threading.Lock()
         self._closed = False
-        threading.Thread(target=self._accept, name="segb-store-channel", daemon=True).start()
+        self._acceptor = threading.Thread(target=self._accept, name="segb-store-channel", daemon=True)
+        self._acceptor.start()
 
     def close(self) -> None:
         with self._lock:
             self._closed = True
             connections, self._connections = self._connections, []
+        # Closing a socket does not end an accept() waiting on it in another thread, which would keep the socket
+        # (and its name) until the process ends: one last connection wakes it, and it sees the channel closed.
+        with contextlib.suppress(OSError, EOFError):
+            Client(self.address.path, family="AF_UNIX", authkey=self.address.key).close()
+        self._acceptor.join(timeout=5)
         self._listener.close()
         for connection in connections:  # each serving thread then reads the end, and closes its connection
             _shut(connection)
-        shutil.rmtree(self._folder, ignore_errors=True)
+        if self._folder is not None:
+            shutil.rmtree(self._folder, ignore_errors=True)
 
     def _accept(self) -> None:
         while True:
@@ -250,7 +263,8 @@ class ChannelStore:
         try:
             return Client(self.address.path, family="AF_UNIX", authkey=self.address.key)
         except (OSError, EOFError) as error:
-            raise StoreUnavailable(f"cannot reach the store's channel at {self.address.path}: {error}") from error
+            where = self.address.path.replace("\0", "@")  # an abstract name, as `ss -x` shows it
+            raise StoreUnavailable(f"cannot reach the store's channel at {where}: {error}") from error
 
 
 def _shut(connection: Connection) -> None:
