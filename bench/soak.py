@@ -5,6 +5,7 @@
     python -m bench.soak --server-log run.log  # keep the server's log (--server-log-level DEBUG: each views' batch)
     python -m bench.soak --minutes 2           # a shorter run
     python -m bench.soak --compare             # views off, then on, in one run: the ratios the targets name
+    python -m bench.soak --disk-breakdown      # and where the views' files spend their bytes (bench/views_disk.py)
 
 Every post is one visit to the same robot (bench/one_robot.py: about 56 triples, a new visitor each time), so
 the robot's node gains children with every post for the whole run; the clock starts once the server's views are
@@ -34,6 +35,7 @@ from pathlib import Path
 
 import httpx
 
+from bench import views_disk
 from bench.client import BenchError, Client
 from bench.measure import Latency, machine, percentile
 from bench.one_robot import OneRobot, one_robot
@@ -95,6 +97,7 @@ class SoakFigures:
     stored_triples: int
     expected_triples: int
     disk_mib: dict[str, float]
+    disk_breakdown: list[str] = field(default_factory=list)  # bench/views_disk.py's tables, when asked
 
     @property
     def rate(self) -> float:
@@ -172,6 +175,7 @@ def soak(
     workers: int = 1,
     log_level: str = "WARNING",
     server_log: Path | None = None,
+    disk_breakdown: bool = False,
 ) -> SoakFigures:
     robot = one_robot()
     with _server(store, root, keep_views, workers, log_level) as (server, data_dir):
@@ -210,10 +214,11 @@ def soak(
         stored = _stored_triples(server.url)
         expected = len(robot.first.splitlines()) + posting.acknowledged * len(robot.visit(0).splitlines())
         disk = _disk(store, data_dir)
+        breakdown = views_disk.report(data_dir, top=8) if disk_breakdown else []
         if server_log is not None:
             server_log.write_text(server.log_text())
     return SoakFigures(
-        store, minutes, clients, keep_views, workers, posting, samples, caught_up, stored, expected, disk
+        store, minutes, clients, keep_views, workers, posting, samples, caught_up, stored, expected, disk, breakdown
     )
 
 
@@ -433,6 +438,9 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--compare", action="store_true", help="run with views off first, then on: the ratios")
     parser.add_argument("--views-off", action="store_true", help="only the run with the views off (KEEP_VIEWS=false)")
+    parser.add_argument(
+        "--disk-breakdown", action="store_true", help="print where the views' files spend their bytes (views on)"
+    )
     args = parser.parse_args(argv)
     workers = args.workers or (2 if args.store == "virtuoso" else 1)
     gc.disable()  # the bench's own collections would be counted in whichever request was in flight
@@ -445,9 +453,11 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix="segb-soak-") as root:
         figures = soak(
             args.store, args.minutes, args.clients, args.auditor_interval, Path(root), not args.views_off, workers,
-            args.server_log_level, args.server_log,
+            args.server_log_level, args.server_log, args.disk_breakdown,
         )  # fmt: skip
     print(figures.markdown())
+    if figures.disk_breakdown:
+        print("\n" + "\n".join(figures.disk_breakdown))
     if off is not None:
         print("\n" + compared(off, figures))
     print("\nmachine: " + "; ".join(f"{k} {v}" for k, v in machine().items()))

@@ -17,7 +17,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 def test_a_short_soak_compares_views_off_and_on_and_loses_nothing() -> None:
     run = subprocess.run(
-        [sys.executable, "-m", "bench.soak", "--minutes", "0.1", "--clients", "2", "--compare"],
+        [sys.executable, "-m", "bench.soak", "--minutes", "0.1", "--clients", "2", "--compare", "--disk-breakdown"],
         cwd=ROOT,
         capture_output=True,
         text=True,
@@ -29,6 +29,9 @@ def test_a_short_soak_compares_views_off_and_on_and_loses_nothing() -> None:
     assert re.search(r"\| posts/s \| \d+ \| \d+ \| [\d.]+ \| ≥ 0\.8 \|", out), out
     assert len(re.findall(r"\| lost \(triples acknowledged, not stored\) \| 0 of [\d,]+ \| 0 \|", out)) == 2, out
     assert "timeline.sqlite3" in out  # every view's file is counted on disk
+    # Where the views' bytes are: each file's biggest tables, and the conversations' rows compressed as a measure.
+    assert re.search(r"## reports\.sqlite3: [\d.]+ MiB", out), out
+    assert re.search(r"\| report_reports_conversations \| [\d,]+ \| \d+ \| \d+ \| [\d.]+ \|", out), out
     assert re.search(r"\| RSS at [\d,]+ posts MiB \| (\d+|not reached) \| \d+ \| [\d.]+ \| ≤ 1\.2 \|", out), out
 
 
