@@ -6,8 +6,8 @@ reads the store through the API process that opened it. `StoreChannel` serves th
 socket, each connection authenticated with a random key both processes hold (multiprocessing.connection's HMAC
 handshake), one thread per connection. On Linux the socket has an abstract name: no file, so a server killed
 with SIGKILL leaves nothing behind; elsewhere it is a file in a private temporary directory (mode 0700), removed
-when the channel closes. `ChannelStore` is the
-`Store` the other process uses, one connection per thread that reads.
+when the channel closes. `ChannelStore` is the `Store` the other process uses, one connection per thread that
+reads.
 
 An answer is the store's own, evaluated and written as SPARQL JSON (or N-Triples for a CONSTRUCT) by pyoxigraph
 without the interpreter lock: the API's requests do not wait while the views' queries run. Nothing is written
