@@ -98,9 +98,11 @@ class StoreChannel:
             self._closed = True
             connections, self._connections = self._connections, []
         # Closing a socket does not end an accept() waiting on it in another thread, which would keep the socket
-        # (and its name) until the process ends: one last connection wakes it, and it sees the channel closed.
-        with contextlib.suppress(OSError, EOFError):
-            Client(self.address.path, family="AF_UNIX", authkey=self.address.key).close()
+        # (and its name) until the process ends: one last bare connection wakes it (its handshake fails at once) and
+        # it sees the channel closed. Bare, and the wait bounded: a caller stalling a handshake must not hold shutdown.
+        with contextlib.suppress(OSError), socket.socket(socket.AF_UNIX) as wake:
+            wake.settimeout(1)
+            wake.connect(self.address.path)
         self._acceptor.join(timeout=5)
         self._listener.close()
         for connection in connections:  # each serving thread then reads the end, and closes its connection
@@ -115,6 +117,8 @@ class StoreChannel:
             except OSError:  # closed
                 return
             except Exception as error:  # a caller without the key, or one that went away mid-handshake
+                if self._closed:  # the connection that wakes this thread when the channel closes
+                    return
                 logger.warning("a connection to the store's channel was refused: %s", error)
                 continue
             with self._lock:

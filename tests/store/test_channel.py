@@ -150,3 +150,20 @@ def test_a_closed_channel_is_an_unavailable_store(tmp_path: Path) -> None:
     finally:
         reader.close()
         store.close()
+
+
+def test_a_caller_stalling_its_handshake_does_not_hold_the_channel_closing(tmp_path: Path) -> None:
+    """A local connection that never answers the key's challenge holds the accepting thread; closing the channel
+    (the server's shutdown) still ends within its bounded wait."""
+    store = OxigraphStore("urn:segb:events", tmp_path / "store")
+    channel = StoreChannel(store)
+    stalling = socket.socket(socket.AF_UNIX)
+    try:
+        stalling.connect(channel.address.path)  # and says nothing
+        closing = threading.Thread(target=channel.close, daemon=True)
+        closing.start()
+        closing.join(timeout=15)
+        assert not closing.is_alive()
+    finally:
+        stalling.close()
+        store.close()
