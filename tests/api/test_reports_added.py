@@ -99,6 +99,10 @@ def with_added_reports(tmp_path: Path) -> Path:
 def server(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> Iterator[httpx.Client]:
     caplog.set_level(logging.INFO, logger="segb.reports")  # before the views are built
     with InProcess(create_app(make_settings(sparql_dir=with_added_reports(tmp_path)))) as served:
+        # The views are built by a thread of their own as the server starts. Their records must land inside the
+        # setup phase: pytest captures each phase with its own handler, and a record logged between two phases
+        # is captured by neither.
+        settle(served.client)
         yield served.client
 
 
