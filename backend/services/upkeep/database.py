@@ -12,6 +12,8 @@ import shutil
 import sqlite3
 import tempfile
 import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from types import TracebackType
 
@@ -55,6 +57,20 @@ class ViewDatabase:
                     self._readers.pop(ended).close()
                 self._readers[threading.current_thread()] = connection
         return connection
+
+    @contextmanager
+    def snapshot(self) -> Iterator[sqlite3.Connection]:
+        """This thread's reader inside one read transaction: what several statements read is one version of the
+        database, whatever the writer commits meanwhile. Inside another snapshot, joins it."""
+        connection = self.reader()
+        if connection.in_transaction:
+            yield connection
+            return
+        connection.execute("BEGIN")
+        try:
+            yield connection
+        finally:
+            connection.execute("COMMIT")  # a read transaction: nothing to roll back
 
     def writer(self) -> sqlite3.Connection:
         """The writer's connection (made on first use): what `writing()` runs on, e.g. to watch the work a step
