@@ -1,5 +1,6 @@
-"""Where the views' files spend their bytes: each view database's biggest tables and indexes, and what its rows
-would take compressed with a dictionary of their own (zlib's preset dictionary, from the table's first rows).
+"""Where the views' files spend their bytes: each view database's biggest tables and indexes, its free pages, its
+kept rows' mean size as stored and how many are stored compressed, and what those kept as text would take
+compressed with a dictionary of their own (zlib's preset dictionary, from the table's first rows).
 
     python -m bench.views_disk DATA_DIR          # a server's data directory (stopped, or at rest)
     python -m bench.views_disk DATA_DIR --top 20
@@ -36,11 +37,20 @@ def row_tables(database: sqlite3.Connection) -> list[str]:
     return [name for name in names if "row" in {column[1] for column in database.execute(f"PRAGMA table_info({name})")}]
 
 
-def compressed(database: sqlite3.Connection, name: str) -> tuple[int, float, float] | None:
-    """Rows of `name`, their mean size, and their mean size compressed with a dictionary of the table's first rows
-    (None when the table holds too few rows to tell)."""
-    rows = [text.encode() for (text,) in database.execute(f"SELECT row FROM {name} LIMIT ?",
-                                                          (DICTIONARY_ROWS + SAMPLED_ROWS,))]  # fmt: skip
+def kept(database: sqlite3.Connection, name: str) -> tuple[int, float, float]:
+    """Rows of `name`, their mean size as stored, and the share of them stored compressed (`row_codec.py`)."""
+    count, mean, packed = database.execute(
+        f"SELECT COUNT(*), COALESCE(AVG(LENGTH(CAST(row AS BLOB))), 0), COALESCE(AVG(typeof(row) = 'blob'), 0) "
+        f"FROM {name}"
+    ).fetchone()
+    return count, mean, packed
+
+
+def compressed(database: sqlite3.Connection, name: str) -> tuple[float, float] | None:
+    """The mean size of the rows of `name` kept as text, and their mean size compressed with a dictionary of
+    the first of them (None when too few are kept as text to tell)."""
+    rows = [text.encode() for (text,) in database.execute(f"SELECT row FROM {name} WHERE typeof(row) = 'text' "
+                                                          "LIMIT ?", (DICTIONARY_ROWS + SAMPLED_ROWS,))]  # fmt: skip
     if len(rows) <= DICTIONARY_ROWS:
         return None
     dictionary = b"".join(rows[:DICTIONARY_ROWS])[-DICTIONARY_BYTES:]
@@ -49,8 +59,7 @@ def compressed(database: sqlite3.Connection, name: str) -> tuple[int, float, flo
     for row in sampled:
         compressor = zlib.compressobj(9, zdict=dictionary)
         packed += len(compressor.compress(row) + compressor.flush())
-    count = database.execute(f"SELECT COUNT(*) FROM {name}").fetchone()[0]
-    return count, sum(map(len, sampled)) / len(sampled), packed / len(sampled)
+    return sum(map(len, sampled)) / len(sampled), packed / len(sampled)
 
 
 def report(data_dir: Path, top: int) -> list[str]:
@@ -65,16 +74,25 @@ def report(data_dir: Path, top: int) -> list[str]:
             lines += [f"## {file_name}: {size:.1f} MiB", ""]
             biggest = [[name, f"{mib:.1f}", f"{cells:,}"] for name, mib, cells in objects(database, top)]
             lines += table(["table or index", "MiB", "cells"], biggest)
-            sizes = [(name, found) for name in row_tables(database) if (found := compressed(database, name))]
-            if sizes:
+            free = (
+                database.execute("PRAGMA freelist_count").fetchone()[0]
+                * database.execute("PRAGMA page_size").fetchone()[0]
+            )
+            lines += [f"free pages: {free / 2**20:.1f} MiB", ""]
+            names = row_tables(database)
+            if names:
                 lines += table(
-                    ["rows of", "rows", "mean row B", "compressed B (dictionary)", "saved MiB"],
-                    [[name, f"{count:,}", f"{raw:.0f}", f"{packed:.0f}", f"{count * (raw - packed) / 2**20:.1f}"]
-                     for name, (count, raw, packed) in sizes],
+                    ["rows of", "rows", "mean row B as stored", "stored compressed", "as text, compressed B"],
+                    [[name, f"{count:,}", f"{mean:.0f}", f"{share:.0%}", _estimate(compressed(database, name))]
+                     for name in names for count, mean, share in [kept(database, name)]],
                 )  # fmt: skip
         finally:
             database.close()
     return lines
+
+
+def _estimate(found: tuple[float, float] | None) -> str:
+    return "" if found is None else f"{found[0]:.0f} → {found[1]:.0f}"
 
 
 def main() -> None:
