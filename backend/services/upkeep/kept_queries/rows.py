@@ -231,7 +231,7 @@ def _named(row: Row, variable: str) -> bool:
     return isinstance(row.get(variable), NamedNode)
 
 
-TERMS = "report_terms"  # units and the IRIs filters compare, as numbers (upkeep/terms.py)
+TERMS = "report_term_digests"  # units and the IRIs filters compare, as numbers (upkeep/terms.py, by digest)
 OWN_TABLES = ("report_state", "report_changes", TERMS, DICTIONARIES)  # the database's own, beside each report's tables
 
 
@@ -246,11 +246,11 @@ class KeptRows:
                 "CREATE TABLE IF NOT EXISTS report_state (report TEXT PRIMARY KEY, fingerprint TEXT, through INTEGER)",
                 "CREATE TABLE IF NOT EXISTS report_changes (seq INTEGER PRIMARY KEY AUTOINCREMENT, report TEXT, "
                 "unit TEXT, through INTEGER)",
-                *terms.schema(TERMS),
+                *terms.schema(TERMS, texts=False),
                 *row_codec.schema(),
             ],
         )
-        self.terms = TermIds(TERMS)
+        self.terms = TermIds(TERMS, texts=False)
         self.codec = RowCodec()
 
     # --- state ---------------------------------------------------------------------------------------
@@ -440,7 +440,8 @@ class KeptRows:
     def rows_of(self, layout: Layout, iris: Sequence[str]) -> list[dict[str, JsonValue]]:
         """The rows whose key is one of these IRIs, in the query's order."""
         with self.db.snapshot() as reader:
-            ids = list(terms.lookup(reader, TERMS, [term_text(NamedNode(iri)) for iri in iris]).values())
+            wanted = [term_text(NamedNode(iri)) for iri in iris]
+            ids = list(terms.lookup(reader, TERMS, wanted, texts=False).values())
             found: list[tuple[str, int, int, str | bytes]] = []
             for chunk in _chunks(ids):
                 marks = ", ".join("?" * len(chunk))
@@ -456,7 +457,7 @@ class KeptRows:
         where: list[str] = []
         arguments: list[object] = []
         named = [term_text(term) for name, term in bound.items() if isinstance(term, NamedNode)]
-        ids = terms.lookup(self.db.reader(), TERMS, named) if named else {}
+        ids = terms.lookup(self.db.reader(), TERMS, named, texts=False) if named else {}
         for condition in layout.plan.column_filters:
             term = bound.get(condition.parameter)
             if term is None:

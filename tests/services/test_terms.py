@@ -1,0 +1,54 @@
+"""A view's table of terms (`upkeep/terms.py`): texts as small numbers, found by a hash and told apart by the
+text itself, or (the kept rows' table) by a 128-bit digest that keeps no text at all."""
+
+from __future__ import annotations
+
+import sqlite3
+
+import pytest
+
+from segb_server.backend.services.upkeep import terms
+from segb_server.backend.services.upkeep.terms import TermIds, iri_digest, iri_hash
+
+IRIS = [f"https://example.org/robots/ari/visitor_{index}" for index in range(1_000)]
+
+
+def table(texts: bool) -> sqlite3.Connection:
+    connection = sqlite3.connect(":memory:")
+    for statement in terms.schema("t", texts=texts):
+        connection.execute(statement)
+    return connection
+
+
+@pytest.mark.parametrize("texts", [True, False], ids=["texts", "digests"])
+def test_each_text_gets_one_number_that_every_writer_and_reader_finds_again(texts: bool) -> None:
+    connection = table(texts)
+    made = TermIds("t", texts=texts).ids(connection, IRIS)
+    assert sorted(made.values()) == list(range(1, len(IRIS) + 1))
+    again = TermIds("t", texts=texts).ids(connection, [*reversed(IRIS), "https://example.org/new"])  # a new writer
+    assert {iri: again[iri] for iri in IRIS} == made and again["https://example.org/new"] == len(IRIS) + 1
+    assert terms.lookup(connection, "t", [IRIS[5], "https://example.org/never"], texts=texts) == {
+        IRIS[5]: made[IRIS[5]]
+    }
+
+
+def test_a_table_of_digests_holds_no_text() -> None:
+    connection = table(texts=False)
+    TermIds("t", texts=False).ids(connection, IRIS)
+    columns = {row[1] for row in connection.execute("PRAGMA table_info(t)")}
+    assert columns == {"id", "hash", "tail"}
+    dumped = "\n".join(connection.iterdump())
+    assert "visitor_" not in dumped and "example.org" not in dumped
+
+
+@pytest.mark.parametrize("texts", [True, False], ids=["texts", "digests"])
+def test_two_texts_sharing_a_hash_keep_their_own_numbers(texts: bool) -> None:
+    connection = table(texts)
+    # another text whose hash (the indexed half) is this IRI's: written first, as a collision would be
+    head = iri_hash(IRIS[0]) if texts else iri_digest(IRIS[0])[0]
+    other = "https://example.org/another" if texts else iri_digest(IRIS[0])[1] ^ 1
+    column = "text" if texts else "tail"
+    connection.execute(f"INSERT INTO t (hash, {column}) VALUES (?, ?)", (head, other))
+    made = TermIds("t", texts=texts).ids(connection, [IRIS[0]])
+    assert made[IRIS[0]] == 2
+    assert terms.lookup(connection, "t", [IRIS[0]], texts=texts) == {IRIS[0]: 2}
