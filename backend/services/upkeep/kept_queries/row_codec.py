@@ -54,6 +54,8 @@ class RowCodec:
     def encode(self, connection: sqlite3.Connection, table: str, texts: Sequence[str]) -> list[str | bytes]:
         """`texts` (rows of `table`) as they are stored: compressed once the table has its dictionary, which
         is made here from its first rows when there are enough of them."""
+        if not texts:  # a replacement that only removed rows: nothing to look up
+            return []
         compressor = self._compressors.get(table) or self._load_or_make(connection, table, texts)
         if compressor is None:
             return list(texts)
