@@ -1,6 +1,7 @@
 """The kept rows (reports, timeline, findings) are stored compressed against a dictionary made of their own
-table's first rows: one robot's visits take a fraction of their text on disk, every page reads as before, and
-the dictionaries, which quote rows, never outlive them: an erased visitor is in none."""
+table's first rows, and their sort keys spell IRIs without the table's namespaces: one robot's visits take a
+fraction of their text on disk, every page reads as before, and the dictionaries, which quote rows, never
+outlive them: an erased visitor is in none."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ import httpx
 import pytest
 
 from segb_server.backend.api.app import create_app
+from segb_server.backend.services.upkeep.kept_queries.key_namespaces import KEY_NAMESPACES
 from segb_server.backend.services.upkeep.kept_queries.row_codec import DICTIONARIES, SAMPLE_ROWS, RowCodec
 from segb_server.examples.receptionist import log_visit, receptionist
 from tests.conftest import make_settings
@@ -88,6 +90,36 @@ def test_rows_are_kept_compressed_and_read_as_they_were_written(server: tuple[ht
     said = sorted(str(row) for row in rows if "this is visit" in str(row))
     assert len(said) == VISITS
     assert all(f"this is visit {index}." in " ".join(said) for index in range(VISITS))
+
+
+def test_keys_spell_no_namespace_and_pages_keep_the_report_order(server: tuple[httpx.Client, Path]) -> None:
+    client, data_dir = server
+    robot = client.get("/reports/conversations", params={"limit": 1}).json()["rows"][0]["robot"]
+    namespace = robot[: robot.rindex("/") + 1]
+    with sqlite3.connect(data_dir / "reports.sqlite3") as connection:
+        table = next(row[0] for row in connection.execute("SELECT name FROM sqlite_master WHERE type = 'table' "
+                                                          "AND name LIKE '%conversations'"))  # fmt: skip
+        keys = [row[0] for row in connection.execute(f"SELECT ord FROM {table}")]
+        kept = [row[0] for row in connection.execute(f"SELECT namespaces FROM {KEY_NAMESPACES} WHERE tab = ?",
+                                                     (table,))]  # fmt: skip
+    assert len(keys) >= VISITS and namespace in kept[0]
+    assert not [key for key in keys if namespace in key]
+    assert sum(map(len, keys)) / len(keys) < 100  # a robot, a visitor, a time and a message
+    whole = client.get("/reports/conversations", params={"limit": 500}).json()["rows"]
+    # the robot's rows are a range of the keys: found by the robot's IRI written as the keys write it,
+    # page after page in the order of the whole report
+    paged: list[dict[str, object]] = []
+    after = None
+    while True:
+        cursor = {"after": after} if after else {}
+        page = client.get("/reports/conversations", params={"robot": robot, "limit": 9, **cursor}).json()
+        paged += page["rows"]
+        after = page.get("next")
+        if not after:
+            break
+    assert paged == [row for row in whole if row["robot"] == robot] and len(paged) >= VISITS
+    other = client.get("/reports/conversations", params={"robot": namespace + "robot_other"}).json()["rows"]
+    assert other == []
 
 
 def test_an_erased_visitor_is_in_no_dictionary_and_no_row(server: tuple[httpx.Client, Path]) -> None:

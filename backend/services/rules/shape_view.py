@@ -38,7 +38,7 @@ from segb_server.backend.store.base import Store, Term
 
 logger = logging.getLogger("segb.rules")
 
-VERSION = "1"  # bump when the stored layout changes: the findings are then built again
+VERSION = "2"  # bump when the stored layout changes: the findings are then built again
 CHANGES_KEPT = 20_000
 SCHEMA = [
     "CREATE TABLE IF NOT EXISTS shape_findings (rule TEXT, unit TEXT, n INTEGER, ord TEXT, time TEXT, robot TEXT, "

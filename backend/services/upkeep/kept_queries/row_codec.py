@@ -25,6 +25,8 @@ import zlib
 from collections import OrderedDict
 from collections.abc import Collection, Sequence
 
+from segb_server.backend.services.upkeep.kept_queries import per_table
+
 DICTIONARIES = "report_dictionaries"
 SAMPLE_ROWS = 64  # rows a table holds before its dictionary is made from them
 SAMPLE_BYTES = 32_768  # zlib's window: a longer dictionary's start is never reached
@@ -89,18 +91,11 @@ class RowCodec:
     def forget(self, connection: sqlite3.Connection, tables: Collection[str] | None = None) -> None:
         """The dictionaries of `tables` (of every table: None) go, with the rows they were made from; inside
         the writer's transaction that empties or drops those tables."""
-        if tables is None:
-            connection.execute(f"DELETE FROM {DICTIONARIES}")
-            self._compressors.clear()
-            return
-        for table in tables:
-            connection.execute(f"DELETE FROM {DICTIONARIES} WHERE tab = ?", (table,))
-            self._compressors.pop(table, None)
+        per_table.forget(connection, DICTIONARIES, self._compressors, tables)
 
     def keep_only(self, connection: sqlite3.Connection, tables: Collection[str]) -> None:
         """The dictionaries of tables but `tables` go (those tables were dropped)."""
-        gone = {row[0] for row in connection.execute(f"SELECT DISTINCT tab FROM {DICTIONARIES}")} - set(tables)
-        self.forget(connection, gone)
+        self.forget(connection, per_table.dropped(connection, DICTIONARIES, tables))
 
     # --- reading -----------------------------------------------------------------------------------------
 

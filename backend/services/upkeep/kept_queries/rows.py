@@ -10,11 +10,12 @@ the groups a replacement touches, so a first page costs its own rows however man
 Compact on disk (a million triples of one robot: its rows were as big as the store itself): a row's key (unit),
 the IRIs its filters compare and its facets are numbers from the database's table of terms (`upkeep/terms.py`);
 a row is stored as the JSON list of its values, compressed against a dictionary of its table's first rows
-(`row_codec.py`: 6 to 8 times smaller); a filter on the first column the report sorts by (a robot,
-in the conversations) is a range of the sort key's index rather than an index of its own. A plain report's
-indexes (its order, its filters) hold the head of the sort key (`head_of`: a message's time) rather than the
-whole key (its time and the IRIs that break ties, about 190 bytes a message, once in each index); a page is
-chosen by its heads and its rows then put in the whole key's order (`_head_page`).
+(`row_codec.py`: 6 to 8 times smaller); a sort key writes its IRIs without the table's namespaces and its
+times as 10 characters (`key_namespaces.py`, `encoding.py`: a conversation's key 75 bytes, was 200); a filter
+on the first column the report sorts by (a robot, in the conversations) is a range of the sort key's index
+rather than an index of its own. A plain report's indexes (its order, its filters) hold the head of the sort
+key (`head_of`: a message's time) rather than the whole key (its time and the IRIs that break ties, once in
+each index); a page is chosen by its heads and its rows then put in the whole key's order (`_head_page`).
 """
 
 from __future__ import annotations
@@ -35,8 +36,14 @@ from segb_server.backend.services.errors import InvalidParameter
 from segb_server.backend.services.sparql.catalog import Parameter
 from segb_server.backend.services.upkeep import terms
 from segb_server.backend.services.upkeep.database import ViewDatabase
-from segb_server.backend.services.upkeep.kept_queries import row_codec
-from segb_server.backend.services.upkeep.kept_queries.encoding import SEPARATOR, filter_value, sort_key
+from segb_server.backend.services.upkeep.kept_queries import key_namespaces, row_codec
+from segb_server.backend.services.upkeep.kept_queries.encoding import (
+    SEPARATOR,
+    filter_value,
+    instant_of_part,
+    sort_key,
+)
+from segb_server.backend.services.upkeep.kept_queries.key_namespaces import KEY_NAMESPACES, KeyNamespaces, Namespaces
 from segb_server.backend.services.upkeep.kept_queries.plan import ReportPlan
 from segb_server.backend.services.upkeep.kept_queries.row_codec import DICTIONARIES, RowCodec
 from segb_server.backend.services.upkeep.signal import ChangeSignal
@@ -170,11 +177,12 @@ class Layout:
         found = [term_text(row[var]) for var in self.filter_columns if self.kind_of(var) == "iri" and _named(row, var)]
         return found + [term_text(row[var]) for var in self.own_anchors if var in row]
 
-    def record(self, unit: int, index: int, row: Row, ids: dict[str, int]) -> tuple[object, ...]:
+    def record(
+        self, unit: int, index: int, row: Row, ids: dict[str, int], namespaces: Namespaces
+    ) -> tuple[object, ...]:
         """One stored row: its unit, place, sort key, values, filter values, anchors, aggregate arguments."""
         plan = self.plan
-        order = plan.group_by if plan.is_aggregate else plan.order
-        key = sort_key([row.get(name[1:]) for name in order])
+        key = sort_key([row.get(name[1:]) for name in self.order], namespaces)
         stored = _row_text([_stored(row.get(name[1:])) for name in self.stored_columns()])
         values: list[object] = [unit, index, key, stored]
         if self.indexes_head:
@@ -189,6 +197,15 @@ class Layout:
                        _aggregate_input(aggregate.function, row.get(aggregate.argument[1:]))
                        for aggregate in plan.aggregates]  # fmt: skip
         return tuple(values)
+
+    @property
+    def order(self) -> list[str]:
+        """The variables of the sort key."""
+        return self.plan.group_by if self.plan.is_aggregate else self.plan.order
+
+    def key_iris(self, row: Row) -> list[str]:
+        """The IRIs the row's sort key spells."""
+        return [term.value for name in self.order if isinstance(term := row.get(name[1:]), NamedNode)]
 
     def stored_columns(self) -> list[str]:
         """The columns a stored row holds the values of, in their order."""
@@ -209,7 +226,7 @@ def head_of(key: str) -> str:
     """A sort key's head: its values up to the first that is not an IRI (a time, a number, a text). The IRIs
     before it are the hubs a report groups by (a robot, a person), few and shared by thousands of rows; the
     value after them tells rows apart, so heads rarely tie (a message's time, where its whole key also holds
-    the IRIs that break ties: 190 bytes against 27 in the timeline of messages).
+    the IRIs that break ties: 11 bytes against about 60 in the timeline of messages).
 
     Heads sort as their keys do, ties aside. A value holds no SEPARATOR, and whether a head goes on past a
     value depends on that value alone: where two heads differ, their keys differ at the same place; a head
@@ -232,7 +249,8 @@ def _named(row: Row, variable: str) -> bool:
 
 
 TERMS = "report_term_digests"  # units and the IRIs filters compare, as numbers (upkeep/terms.py, by digest)
-OWN_TABLES = ("report_state", "report_changes", TERMS, DICTIONARIES)  # the database's own, beside each report's tables
+# the database's own, beside each report's tables
+OWN_TABLES = ("report_state", "report_changes", TERMS, DICTIONARIES, KEY_NAMESPACES)
 
 
 class KeptRows:
@@ -248,10 +266,12 @@ class KeptRows:
                 "unit TEXT, through INTEGER)",
                 *terms.schema(TERMS, texts=False),
                 *row_codec.schema(),
+                *key_namespaces.schema(),
             ],
         )
         self.terms = TermIds(TERMS, texts=False)
         self.codec = RowCodec()
+        self.namespaces = KeyNamespaces()
 
     # --- state ---------------------------------------------------------------------------------------
 
@@ -282,6 +302,7 @@ class KeptRows:
             for name in dropped:
                 connection.execute(f'DROP TABLE "{name}"')
             self.codec.keep_only(connection, kept)
+            self.namespaces.keep_only(connection, kept)
             marks = ", ".join("?" * len(reports))
             connection.execute(f"DELETE FROM report_state WHERE report NOT IN ({marks})", list(reports))
         return dropped
@@ -294,6 +315,7 @@ class KeptRows:
                 for table in layout.tables:
                     connection.execute(f"DROP TABLE IF EXISTS {table}")
                 self.codec.forget(connection, layout.tables)
+                self.namespaces.forget(connection, layout.tables)
             for statement in layout.schema():
                 connection.execute(statement)
 
@@ -309,7 +331,8 @@ class KeptRows:
             ids = self.terms.ids(connection, [*units, *texts])
             unit_ids = [ids[unit] for unit in units]
             record_units = [unit for unit in units for _ in rows.get(unit, [])]
-            records = [layout.record(ids[unit], index, row, ids)
+            namespaces = self._namespaces(connection, layout, [row for unit in units for row in rows.get(unit, [])])
+            records = [layout.record(ids[unit], index, row, ids, namespaces)
                        for unit in units for index, row in enumerate(rows.get(unit, []))]  # fmt: skip
             stored = self.codec.encode(connection, layout.table, [str(record[3]) for record in records])
             records = [(*record[:3], row, *record[4:]) for record, row in zip(records, stored, strict=True)]
@@ -332,6 +355,13 @@ class KeptRows:
                     [(layout.plan.name, unit, through) for unit in units],
                 )
 
+    def _namespaces(self, connection: Any, layout: Layout, rows: list[Row]) -> Namespaces:
+        """The namespaces the table's keys are written with: made from its first rows (none yet: none needed)."""
+        if not rows:
+            return Namespaces()
+        iris = (iri for row in rows for iri in layout.key_iris(row))
+        return self.namespaces.for_writing(connection, layout.table, iris)
+
     def add_facets(self, layout: Layout, parameter: str, pairs: list[tuple[str, str]]) -> None:
         """A facet's pairs only grow as triples arrive (a clearing empties them with the rest)."""
         with self.db.writing() as connection:
@@ -346,6 +376,7 @@ class KeptRows:
             for table in layout.tables:
                 connection.execute(f"DELETE FROM {table}")
             self.codec.forget(connection, layout.tables)
+            self.namespaces.forget(connection, layout.tables)
         # The terms stay (other reports' rows refer to them): a few numbers for IRIs no row holds any more.
 
     def forget_erased(self) -> None:
@@ -355,6 +386,7 @@ class KeptRows:
             connection.execute(f"DELETE FROM {TERMS}")
             connection.execute("DELETE FROM report_changes")
             self.codec.forget(connection)
+            self.namespaces.forget(connection)
         self.terms.forget()
 
     def prune_changes(self, keep: int) -> None:
@@ -367,7 +399,8 @@ class KeptRows:
 
     def page(self, layout: Layout, bound: dict[str, Any], limit: int, offset: int, after: str | None) -> Page:
         """Rows matching the bound parameters (name → term, None = not given), in the report's order."""
-        with self.db.snapshot():  # the rows and the dictionaries they were compressed with, as one version
+        # the rows, the dictionaries they were compressed with and the namespaces of their keys, as one version
+        with self.db.snapshot():
             return self._page(layout, bound, limit, offset, after)
 
     def _page(self, layout: Layout, bound: dict[str, Any], limit: int, offset: int, after: str | None) -> Page:
@@ -430,12 +463,13 @@ class KeptRows:
 
     def count(self, layout: Layout, bound: dict[str, Any]) -> int:
         """How many rows match the bound parameters (plain queries: an aggregate's rows are its groups)."""
-        conditions = self._conditions(layout, bound)
-        if conditions is None:  # a filter on an IRI no row holds
-            return 0
-        where, arguments = conditions.where, conditions.arguments
-        clause = f"WHERE {' AND '.join(where)}" if where else ""
-        return int(self.db.reader().execute(f"SELECT COUNT(*) FROM {layout.table} {clause}", arguments).fetchone()[0])
+        with self.db.snapshot() as reader:  # the rows and the namespaces their keys were written with
+            conditions = self._conditions(layout, bound)
+            if conditions is None:  # a filter on an IRI no row holds
+                return 0
+            where, arguments = conditions.where, conditions.arguments
+            clause = f"WHERE {' AND '.join(where)}" if where else ""
+            return int(reader.execute(f"SELECT COUNT(*) FROM {layout.table} {clause}", arguments).fetchone()[0])
 
     def rows_of(self, layout: Layout, iris: Sequence[str]) -> list[dict[str, JsonValue]]:
         """The rows whose key is one of these IRIs, in the query's order."""
@@ -464,7 +498,7 @@ class KeptRows:
                 continue
             column = condition.column[1:]
             if column == layout.sorted_by:  # the rows of one value are a range of the sort key, and of its head
-                prefix = sort_key([term]) + SEPARATOR
+                prefix = sort_key([term], self.namespaces.for_reading(self.db.reader(), layout.table)) + SEPARATOR
                 bounds = [prefix, prefix[:-1] + chr(ord(SEPARATOR) + 1)]
                 order = layout.order_column
                 where.append(f"{order} >= ? AND {order} < ?")
@@ -627,7 +661,7 @@ def _decoded(key: str) -> JsonValue:
         bits = bits ^ (1 << 63) if bits >> 63 else bits ^ 0xFFFFFFFFFFFFFFFF
         return struct.unpack(">d", struct.pack(">Q", bits))[0]
     if kind == "4":
-        return iso_time(text + "+00:00")
+        return iso_time(instant_of_part(text))
     return text
 
 
