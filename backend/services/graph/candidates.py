@@ -6,7 +6,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-from segb_server.backend.services.graph.facts import RANK, instant_of
+from segb_server.backend.services.graph.facts import RANK, UNTIMED, instant_of
 from segb_server.backend.vocabulary import KINDS, PERFORMED_BY, PREFIXES
 
 ATTRIBUTED_TO = PREFIXES["prov"] + "wasAttributedTo"
@@ -87,7 +87,7 @@ class CandidateQuery:
 
     def _window(self, since: str | None, until: str | None) -> None:
         """Timed nodes inside the window, and untimed nodes linked to one of them."""
-        bounds, arguments = ["time IS NOT NULL"], []
+        bounds, arguments = [f"instant < {UNTIMED}"], []
         if since:
             bounds.append("instant >= ?")
             arguments.append(instant_of(since))
@@ -98,9 +98,9 @@ class CandidateQuery:
         self._cte(
             "window_set(id) AS (SELECT id FROM window_timed "
             "UNION SELECT l.target FROM window_timed t JOIN graph_links l ON l.source = t.id "
-            "JOIN graph_nodes u ON u.id = l.target AND u.time IS NULL "
+            f"JOIN graph_nodes u ON u.id = l.target AND u.instant = {UNTIMED} "
             "UNION SELECT l.source FROM window_timed t JOIN graph_links l ON l.target = t.id "
-            "JOIN graph_nodes u ON u.id = l.source AND u.time IS NULL)"
+            f"JOIN graph_nodes u ON u.id = l.source AND u.instant = {UNTIMED})"
         )
         self.conditions.append("n.id IN window_set")
 
@@ -121,7 +121,7 @@ class CandidateQuery:
         """Nodes whose label or IRI holds the text (any case), among the nodes allowed so far, and their
         neighbours."""
         where = " AND ".join(
-            [*self.conditions, "(instr(COALESCE(n.folded, n.label), ?) > 0 OR instr(lower(t.text), ?) > 0)"]
+            [*self.conditions, "(instr(COALESCE(n.folded, lower(n.label)), ?) > 0 OR instr(lower(t.text), ?) > 0)"]
         )
         self._cte(
             f"hits(id) AS (SELECT n.id FROM {NODE_FROM} WHERE {where})", *self.condition_arguments, needle, needle

@@ -34,6 +34,7 @@ from segb_server.backend.services.graph.facts import (
     chunks,
     display_label,
     local_name,
+    node_time,
     typed_literal,
 )
 from segb_server.backend.services.graph.neighbourhoods import MAX_KEPT_REACH, KeptNeighbourhoods
@@ -58,7 +59,7 @@ __all__ = [
 
 logger = logging.getLogger("segb.graph")
 
-INDEX_VERSION = "5"  # bump when the stored rows change meaning: the index is then built again
+INDEX_VERSION = "6"  # bump when the stored rows change meaning: the index is then built again
 # While the first view was asked for this recently, the keeper draws it again as soon as a step changes it: the
 # viewer's next request (live viewers fetch on every change) finds it drawn. Nobody watching, nothing is drawn.
 FIRST_VIEW_WATCHED_SECONDS = 120.0
@@ -103,7 +104,8 @@ SCHEMA = [
     "CREATE TABLE IF NOT EXISTS graph_typesets (id INTEGER PRIMARY KEY, types TEXT NOT NULL UNIQUE)",
     # rank: the kind's place in KINDS; instant: the time in microseconds (UNTIMED when none); tie: what orders
     # nodes of one kind and instant (the robots, the people), the same however they arrived (`facts.tie_of`);
-    # folded: the label as a search compares it, when that differs from the label
+    # time: only a time its instant does not spell (`facts.kept_time`); folded: the label as a search compares
+    # it, when SQLite's lower() would not give it (`facts._folded`)
     "CREATE TABLE IF NOT EXISTS graph_nodes (id INTEGER PRIMARY KEY, rank INTEGER NOT NULL, "
     "instant INTEGER NOT NULL, tie TEXT NOT NULL, time TEXT, label TEXT NOT NULL, folded TEXT, "
     "typeset INTEGER NOT NULL)",
@@ -262,7 +264,7 @@ class GraphIndex:
         found = connection.execute(*query.ordered(request.limit + 1)).fetchall()
         truncated = len(found) > request.limit
         kept = found[: request.limit]
-        nodes = [_node(row[0], *row[4:]) for row in kept]
+        nodes = [_node(row[0], row[1], *row[4:]) for row in kept]
         total = len(kept) if not truncated else _total(connection, query)
         needle = request.q.casefold() if request.q else None
         return {
@@ -360,8 +362,9 @@ def _is_node(connection: sqlite3.Connection, node: int) -> bool:
     return connection.execute("SELECT 1 FROM graph_nodes WHERE id = ?", (node,)).fetchone() is not None
 
 
-def _node(rank: int, iri: str, time: str | None, label: str, types: str) -> dict[str, object]:
+def _node(rank: int, instant: int, iri: str, kept: str | None, label: str, types: str) -> dict[str, object]:
     node: dict[str, object] = {"id": iri, "label": label, "kind": KINDS[rank], "types": list(_types(types))}
+    time = node_time(kept, instant)
     if time:
         node["time"] = time
     return node
