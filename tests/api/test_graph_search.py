@@ -33,7 +33,8 @@ ex:naive a prov:Activity ; rdfs:label "naive" ; prov:startedAtTime "2026-03-10T0
 
 def test_labels_are_found_in_any_case_and_times_drawn_as_the_log_gave_them(memory_api: InProcess) -> None:
     """A search folds a label's case as Python does (ß → ss), whatever SQLite's lower() folds by itself (ASCII
-    only); a node's time is drawn in UTC when it had a zone, and as written when it had none."""
+    only); a node's time is drawn in UTC when it had a zone, and as written when it had none; untimed nodes are
+    drawn in the order of their IRIs' ends."""
     answer = memory_api.client.post("/ttl", json={"ttl_content": TURTLE, "user": "tester"})
     assert answer.status_code == 201, answer.text
 
@@ -50,3 +51,5 @@ def test_labels_are_found_in_any_case_and_times_drawn_as_the_log_gave_them(memor
     ]
     times = {node["label"]: node.get("time") for node in drawn}
     assert times == {"zoned": "2026-03-10T08:00:05.25Z", "naive": "2026-03-10T09:00:07"}
+    people = memory_api.get("/graph", params={"types": "human"}).json()["nodes"]
+    assert [node["label"] for node in people] == ["Ana Reyes", "ZOË STRAßE"]  # untimed: by their IRIs' ends

@@ -103,11 +103,12 @@ SCHEMA = [
     # the distinct lists of a node's types (CURIEs, as JSON): a few dozen lists for thousands of nodes
     "CREATE TABLE IF NOT EXISTS graph_typesets (id INTEGER PRIMARY KEY, types TEXT NOT NULL UNIQUE)",
     # rank: the kind's place in KINDS; instant: the time in microseconds (UNTIMED when none); tie: what orders
-    # nodes of one kind and instant (the robots, the people), the same however they arrived (`facts.tie_of`);
+    # nodes of one kind and instant (the robots, the people), the same however they arrived (`facts.tie_of`: a
+    # text or a number, so the column has no type that would turn one into the other);
     # time: only a time its instant does not spell (`facts.kept_time`); folded: the label as a search compares
     # it, when SQLite's lower() would not give it (`facts._folded`)
     "CREATE TABLE IF NOT EXISTS graph_nodes (id INTEGER PRIMARY KEY, rank INTEGER NOT NULL, "
-    "instant INTEGER NOT NULL, tie TEXT NOT NULL, time TEXT, label TEXT NOT NULL, folded TEXT, "
+    "instant INTEGER NOT NULL, tie NOT NULL, time TEXT, label TEXT NOT NULL, folded TEXT, "
     "typeset INTEGER NOT NULL)",
     "CREATE INDEX IF NOT EXISTS graph_nodes_order ON graph_nodes (rank, instant, tie, id)",
     "CREATE INDEX IF NOT EXISTS graph_nodes_instant ON graph_nodes (instant)",
