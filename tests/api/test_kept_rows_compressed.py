@@ -15,6 +15,7 @@ import httpx
 import pytest
 
 from segb_server.backend.api.app import create_app
+from segb_server.backend.services.upkeep.kept_queries.facets import FACETS_PREFIX
 from segb_server.backend.services.upkeep.kept_queries.key_namespaces import KEY_NAMESPACES
 from segb_server.backend.services.upkeep.kept_queries.row_codec import DICTIONARIES, SAMPLE_ROWS, RowCodec
 from segb_server.examples.receptionist import log_visit, receptionist
@@ -120,6 +121,29 @@ def test_keys_spell_no_namespace_and_pages_keep_the_report_order(server: tuple[h
     assert paged == [row for row in whole if row["robot"] == robot] and len(paged) >= VISITS
     other = client.get("/reports/conversations", params={"robot": namespace + "robot_other"}).json()["rows"]
     assert other == []
+
+
+def test_the_timeline_kinds_keep_a_facet_s_pairs_once_and_filter_by_them(server: tuple[httpx.Client, Path]) -> None:
+    """The timeline's kinds of activity have the same facet (the people an activity involved): its pairs are kept
+    in one table, not once a kind, and every kind's rows are still filtered by it."""
+    client, data_dir = server
+    with sqlite3.connect(data_dir / "timeline.sqlite3") as connection:
+        names = [row[0] for row in connection.execute("SELECT name FROM sqlite_master WHERE type = 'table'")]
+        pairs = {name: connection.execute(f"SELECT COUNT(*) FROM {name}").fetchone()[0]
+                 for name in names if name.startswith(FACETS_PREFIX)}  # fmt: skip
+    assert not [name for name in names if name.endswith("_facets")]  # no kind keeps pairs of its own
+    assert 1 <= len(pairs) <= 3 and any(pairs.values()), pairs
+    robot = client.get("/reports/conversations", params={"limit": 1}).json()["rows"][0]["robot"]
+    everything = client.get("/timeline", params={"robot": robot, "limit": 5000}).json()["rows"]
+    visitor = next(human for row in everything for human in row["humans"] if human.endswith("_5"))
+    filtered = client.get("/timeline", params={"robot": robot, "human": visitor, "limit": 500}).json()["rows"]
+    assert {"listening", "response", "message"} <= {row["kind"] for row in filtered}
+    # her visit's events, those her rows name and the activities that involved her, and no other visit's
+    ids = {row["id"] for row in filtered}
+    assert {row["id"] for row in everything if visitor in row["humans"]} <= ids <= {row["id"] for row in everything}
+    assert all("_5 " in event for event in ids if not event.startswith("shared-event")), ids
+    assert len([event for event in ids if event.startswith("shared-event")]) == 1  # what she said, heard once
+    assert [row["time"] for row in filtered] == sorted(row["time"] for row in filtered)
 
 
 def test_an_erased_visitor_is_in_no_dictionary_and_no_row(server: tuple[httpx.Client, Path]) -> None:

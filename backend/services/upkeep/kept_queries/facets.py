@@ -4,6 +4,9 @@ is an index lookup."""
 
 from __future__ import annotations
 
+import hashlib
+import json
+
 from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX
 from segb_server.backend.services.upkeep.delta import Delta, Fact
 from segb_server.backend.services.upkeep.kept_queries.delta_joins import DeltaJoin
@@ -16,6 +19,8 @@ from segb_server.backend.services.upkeep.kept_queries.keys import (
 from segb_server.backend.services.upkeep.kept_queries.plan import FacetFilter, Pattern, ReportPlan
 from segb_server.backend.store.base import Store, select
 from segb_server.backend.store.terms import term_text
+
+FACETS_PREFIX = "report_facets_"  # the tables of facets' pairs (`facet_table`), in the kept rows' databases
 
 
 class FacetPairs:
@@ -136,6 +141,19 @@ def _allowed(plan: ReportPlan, body: tuple[Pattern, ...]) -> dict[str, frozenset
         if group in groups:
             allowed[variable] = allowed[variable] & values if variable in allowed else values
     return allowed
+
+
+def facet_table(plan: ReportPlan, facet: FacetFilter) -> str:
+    """The table of a facet's (value, anchor) pairs, named by what the pairs depend on (its anchor, its bodies'
+    patterns and the values their groups allow): the reports of one database whose facets have the same
+    patterns keep their pairs once (the timeline's kinds: one table where eight held the same pairs)."""
+    bodies = [
+        [[[p.subject, sorted(p.predicates), p.object] for p in body],
+         [[variable, sorted(values)] for variable, values in sorted(_allowed(plan, body).items())]]
+        for body in facet.bodies
+    ]  # fmt: skip
+    described = [facet.anchor, bodies]
+    return FACETS_PREFIX + hashlib.sha256(json.dumps(described).encode()).hexdigest()[:16]
 
 
 def facet_patterns(plan: ReportPlan) -> frozenset[Pattern]:

@@ -19,7 +19,7 @@ from dataclasses import replace
 from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, CatalogQuery
 from segb_server.backend.services.upkeep.delta import Delta
 from segb_server.backend.services.upkeep.kept_queries.delta_joins import DeltaJoin
-from segb_server.backend.services.upkeep.kept_queries.facets import FacetPairs, facet_patterns
+from segb_server.backend.services.upkeep.kept_queries.facets import FacetPairs, facet_patterns, facet_table
 from segb_server.backend.services.upkeep.kept_queries.keys import VALUES_PER_QUERY, KeyFinder
 from segb_server.backend.services.upkeep.kept_queries.plan import (
     FacetFilter,
@@ -34,7 +34,7 @@ from segb_server.backend.store.terms import bind_texts, bind_values, term_text
 
 logger = logging.getLogger("segb.reports")
 
-PLAN_VERSION = "9"  # bump when the stored layout changes: every report is then built again
+PLAN_VERSION = "10"  # bump when the stored layout changes: every report is then built again
 CHANGES_KEPT = 20_000
 
 
@@ -207,7 +207,9 @@ def kept_text(query: CatalogQuery, plan: ReportPlan) -> str:
 def _projection(query: CatalogQuery, plan: ReportPlan, store: Store, rows: KeptRows) -> KeptQuery:
     unit = plan.unit()
     text = kept_text(query, plan)
-    layout = Layout(f"report_{re.sub(r'[^a-z0-9]', '_', query.name.lower())}", plan, query.parameters, unit)
+    facet_tables = {facet.parameter: facet_table(plan, facet) for facet in plan.facet_filters}
+    table = f"report_{re.sub(r'[^a-z0-9]', '_', query.name.lower())}"
+    layout = Layout(table, plan, query.parameters, unit, facet_tables)
     # The tables' schema counts too: rows stored in another layout are built again, not read.
     fingerprint = hashlib.sha256("\n".join([PLAN_VERSION, query.text, *layout.schema()]).encode()).hexdigest()
     return KeptQuery(layout, unit, text, fingerprint, store, rows)

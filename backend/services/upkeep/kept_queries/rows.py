@@ -6,6 +6,10 @@ before grouping, one unit per value of its COUNT(DISTINCT …) argument), so fil
 (a time window) stay exact when a filtered page groups them as it is read. Its unfiltered pages, the ones every
 visit opens with, read its groups: each group's aggregates kept in a table of their own, computed again for
 the groups a replacement touches, so a first page costs its own rows however many contributions there are.
+A MIN and a MAX of one variable share their contributions' column and its index.
+
+A facet filter's pairs (`facets.py`) are kept in a table named by the facet's patterns, shared by every report
+of the database whose facet has the same ones (the timeline's kinds of activity).
 
 Compact on disk (a million triples of one robot: its rows were as big as the store itself): a row's key (unit),
 the IRIs its filters compare and its facets are numbers from the database's table of terms (`upkeep/terms.py`);
@@ -23,8 +27,8 @@ from __future__ import annotations
 import base64
 import json
 import struct
-from collections.abc import Collection, Iterable, Sequence
-from dataclasses import dataclass
+from collections.abc import Collection, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
 from typing import Any
@@ -43,6 +47,7 @@ from segb_server.backend.services.upkeep.kept_queries.encoding import (
     instant_of_part,
     sort_key,
 )
+from segb_server.backend.services.upkeep.kept_queries.facets import FACETS_PREFIX
 from segb_server.backend.services.upkeep.kept_queries.key_namespaces import KEY_NAMESPACES, KeyNamespaces, Namespaces
 from segb_server.backend.services.upkeep.kept_queries.plan import ReportPlan
 from segb_server.backend.services.upkeep.kept_queries.row_codec import DICTIONARIES, RowCodec
@@ -71,6 +76,9 @@ class Layout:
     plan: ReportPlan
     parameters: dict[str, Parameter]
     unit: str  # the variable (without ?) whose values are the rows' keys
+    # facet parameter → the table of its (value, anchor) pairs, shared by every report of this database whose
+    # facet has the same patterns (`facets.facet_table`: the timeline's kinds share theirs)
+    facet_tables: Mapping[str, str] = field(default_factory=dict)
 
     @cached_property
     def filter_columns(self) -> dict[str, str]:
@@ -127,23 +135,41 @@ class Layout:
 
     @property
     def column_count(self) -> int:
-        aggregates = len(self.plan.aggregates) if self.plan.is_aggregate else 0
+        aggregates = len(self.argument_columns) if self.plan.is_aggregate else 0
         return 4 + self.indexes_head + len(self.filter_columns) + len(self.own_anchors) + aggregates
+
+    @cached_property
+    def argument_column(self) -> list[int]:
+        """For each aggregate, the column `g_<n>` its argument is kept in: a MIN and a MAX of one variable (a
+        person's first and last visit) read the same values, from one column and one index (read from either
+        end)."""
+        columns: list[int] = []
+        for index, aggregate in enumerate(self.plan.aggregates):
+            shared = next((earlier for earlier, other in enumerate(self.plan.aggregates[:index])
+                           if aggregate.function in ("min", "max") and other.function in ("min", "max")
+                           and other.argument == aggregate.argument), index)  # fmt: skip
+            columns.append(columns[shared] if shared != index else index)
+        return columns
+
+    @property
+    def argument_columns(self) -> list[int]:
+        """The `g_<n>` columns a contribution keeps, each once."""
+        return list(dict.fromkeys(self.argument_column))
 
     def schema(self) -> list[str]:
         types = {"decimal": "REAL", "integer": "REAL", "dateTime": "INTEGER", "iri": "INTEGER"}
         filters = [f"{sql} {types.get(self.kind_of(var), 'TEXT')}" for var, sql in self.filter_columns.items()]
         anchors = [f"{sql} INTEGER" for sql in self.own_anchors.values()]
-        aggregate = [f"g_{i}" for i in range(len(self.plan.aggregates))] if self.plan.is_aggregate else []
+        aggregate = [f"g_{i}" for i in self.argument_columns] if self.plan.is_aggregate else []
         head = ["head_length INTEGER"] if self.indexes_head else []
         columns = ", ".join(["unit INTEGER", "n INTEGER", "ord TEXT", "row TEXT", *head, *filters, *anchors,
                              *aggregate])  # fmt: skip
         statements = [
             f"CREATE TABLE IF NOT EXISTS {self.table} ({columns}, PRIMARY KEY (unit, n))",
             f"CREATE INDEX IF NOT EXISTS {self.table}_ord ON {self.table} ({self.order_column}, unit, n)",
-            f"CREATE TABLE IF NOT EXISTS {self.table}_facets (param TEXT, value INTEGER, anchor INTEGER, "
-            "PRIMARY KEY (param, value, anchor)) WITHOUT ROWID",
-        ]
+            *(f"CREATE TABLE IF NOT EXISTS {facets} (value INTEGER, anchor INTEGER, PRIMARY KEY (value, anchor)) "
+              "WITHOUT ROWID" for facets in sorted(set(self.facet_tables.values()))),
+        ]  # fmt: skip
         for sql in dict.fromkeys([*self.filter_columns.values(), *self.anchors.values()]):
             # The sort key (or its head): a filtered page is chosen from this index alone (see `page`).
             statements.append(
@@ -151,7 +177,8 @@ class Layout:
             )
         if self.plan.is_aggregate:
             for index, kept in enumerate(self.plan.aggregates):
-                if kept.function != "count":  # a group's extreme is read from its index (`_regroup`)
+                # a group's extreme is read from its index (`_regroup`), one index a column
+                if kept.function != "count" and self.argument_column[index] == index:
                     statements.append(
                         f"CREATE INDEX IF NOT EXISTS {self.table}_g{index} ON {self.table} (ord, g_{index})"
                     )
@@ -163,13 +190,20 @@ class Layout:
         return statements
 
     @property
+    def own_tables(self) -> list[str]:
+        """The tables of this report's rows alone."""
+        return [self.table, *([f"{self.table}_groups"] if self.plan.is_aggregate else [])]
+
+    @property
     def tables(self) -> list[str]:
-        return [self.table, f"{self.table}_facets", *([f"{self.table}_groups"] if self.plan.is_aggregate else [])]
+        """Every table this report reads: its own and its facets' (shared)."""
+        return [*self.own_tables, *sorted(set(self.facet_tables.values()))]
 
     def grouped(self) -> str:
         """The SELECT list of a group: its order, its sample row, each aggregate over its contributions."""
-        aggregates = ", ".join(_sql_aggregate(aggregate.function, aggregate.distinct, f"g_{index}")
-                               for index, aggregate in enumerate(self.plan.aggregates))  # fmt: skip
+        aggregates = ", ".join(_sql_aggregate(aggregate.function, aggregate.distinct, f"g_{column}")
+                               for aggregate, column in zip(self.plan.aggregates, self.argument_column,
+                                                            strict=True))  # fmt: skip
         return f"ord, MIN(row), {aggregates}"
 
     def texts(self, row: Row) -> list[str]:
@@ -193,9 +227,10 @@ class Layout:
                           filter_value(row.get(var), kind))  # fmt: skip
         values += [ids[term_text(row[var])] if var in row else None for var in self.own_anchors]
         if plan.is_aggregate:  # a count of the rows' keys counts their numbers
+            kept = [plan.aggregates[column] for column in self.argument_columns]
             values += [unit if aggregate.argument == f"?{self.unit}" and aggregate.function == "count" else
                        _aggregate_input(aggregate.function, row.get(aggregate.argument[1:]))
-                       for aggregate in plan.aggregates]  # fmt: skip
+                       for aggregate in kept]  # fmt: skip
         return tuple(values)
 
     @property
@@ -311,11 +346,11 @@ class KeptRows:
 
     def create(self, layout: Layout, *, fresh: bool) -> None:
         with self.db.writing() as connection:
-            if fresh:
-                for table in layout.tables:
+            if fresh:  # a facet's pairs are the graph's, whichever report keeps them: the build adds the missing
+                for table in layout.own_tables:
                     connection.execute(f"DROP TABLE IF EXISTS {table}")
-                self.codec.forget(connection, layout.tables)
-                self.namespaces.forget(connection, layout.tables)
+                self.codec.forget(connection, layout.own_tables)
+                self.namespaces.forget(connection, layout.own_tables)
             for statement in layout.schema():
                 connection.execute(statement)
 
@@ -367,16 +402,18 @@ class KeptRows:
         with self.db.writing() as connection:
             ids = self.terms.ids(connection, [text for pair in pairs for text in pair])
             connection.executemany(
-                f"INSERT OR IGNORE INTO {layout.table}_facets VALUES (?, ?, ?)",
-                [(parameter, ids[value], ids[anchor]) for anchor, value in pairs],
+                f"INSERT OR IGNORE INTO {layout.facet_tables[parameter]} VALUES (?, ?)",
+                [(ids[value], ids[anchor]) for anchor, value in pairs],
             )
 
     def clear(self, layout: Layout) -> None:
+        """The graph was emptied: the report's rows and its facets' pairs go (every report sharing them is
+        cleared in the same step)."""
         with self.db.writing() as connection:
             for table in layout.tables:
                 connection.execute(f"DELETE FROM {table}")
-            self.codec.forget(connection, layout.tables)
-            self.namespaces.forget(connection, layout.tables)
+            self.codec.forget(connection, layout.own_tables)
+            self.namespaces.forget(connection, layout.own_tables)
         # The terms stay (other reports' rows refer to them): a few numbers for IRIs no row holds any more.
 
     def forget_erased(self) -> None:
@@ -385,6 +422,10 @@ class KeptRows:
         with self.db.writing() as connection:
             connection.execute(f"DELETE FROM {TERMS}")
             connection.execute("DELETE FROM report_changes")
+            for (facets,) in connection.execute(
+                f"SELECT name FROM sqlite_master WHERE type = 'table' AND name LIKE '{FACETS_PREFIX}%'"
+            ).fetchall():  # the pairs name what was erased; every report adds its facets' pairs again
+                connection.execute(f'DELETE FROM "{facets}"')
             self.codec.forget(connection)
             self.namespaces.forget(connection)
         self.terms.forget()
@@ -520,8 +561,8 @@ class KeptRows:
             if term_text(term) not in ids:
                 return None
             anchor = layout.anchors[facet.anchor[1:]]
-            where.append(f"{anchor} IN (SELECT anchor FROM {layout.table}_facets WHERE param = ? AND value = ?)")
-            arguments += [facet.parameter, ids[term_text(term)]]
+            where.append(f"{anchor} IN (SELECT anchor FROM {layout.facet_tables[facet.parameter]} WHERE value = ?)")
+            arguments.append(ids[term_text(term)])
         return Conditions(where, arguments)
 
     def _aggregate_page(
@@ -587,7 +628,7 @@ def _regroup(connection: Any, layout: Layout, left: set[tuple[str, int]], joined
                 aggregates.append((int(kept[0]) if kept else 0) + moved.get(group, 0))
                 continue
             # MIN serves SAMPLE (any value will do), from the group's index on the argument like MIN and MAX
-            function = _sql_aggregate(aggregate.function, aggregate.distinct, f"g_{index}")
+            function = _sql_aggregate(aggregate.function, aggregate.distinct, f"g_{layout.argument_column[index]}")
             found = connection.execute(f"SELECT {function} FROM {table} WHERE ord = ?", (group,)).fetchone()
             aggregates.append(found[0])
         marks = ", ".join("?" * (2 + len(aggregates)))
