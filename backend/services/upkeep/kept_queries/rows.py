@@ -143,13 +143,11 @@ class Layout:
         """For each aggregate, the column `g_<n>` its argument is kept in: a MIN and a MAX of one variable (a
         person's first and last visit) read the same values, from one column and one index (read from either
         end)."""
-        columns: list[int] = []
-        for index, aggregate in enumerate(self.plan.aggregates):
-            shared = next((earlier for earlier, other in enumerate(self.plan.aggregates[:index])
-                           if aggregate.function in ("min", "max") and other.function in ("min", "max")
-                           and other.argument == aggregate.argument), index)  # fmt: skip
-            columns.append(columns[shared] if shared != index else index)
-        return columns
+        extremes = ("min", "max")
+        return [next(earlier for earlier, other in enumerate(self.plan.aggregates[: index + 1])
+                     if earlier == index or (aggregate.function in extremes and other.function in extremes
+                                             and other.argument == aggregate.argument))
+                for index, aggregate in enumerate(self.plan.aggregates)]  # fmt: skip
 
     @property
     def argument_columns(self) -> list[int]:
