@@ -179,11 +179,12 @@ class Facts:
             borrowing = [node for node, d in derived.items() if d.time is None and d.kind in ("message", "emotion")]
             for node, time in self._borrowed_times(connection, borrowing).items():
                 derived[node].time = time
+            instants = {node: instant_of(d.time) if d.time else UNTIMED for node, d in derived.items()}
             connection.executemany(
                 "INSERT OR REPLACE INTO graph_nodes VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
                 [
-                    (node, RANK[d.kind], instant_of(d.time) if d.time else UNTIMED,
-                     tie_of(iris[node], timed=bool(d.time)), kept_time(d.time), d.label, _folded(d.label),
+                    (node, RANK[d.kind], instants[node], tie_of(iris[node], timed=bool(d.time)),
+                     kept_time(d.time, instants[node]), d.label, _folded(d.label),
                      self._typeset(connection, json.dumps(sorted(compact(t) for t in node_types[node]))))
                     for node, d in derived.items()
                 ],
@@ -272,10 +273,10 @@ def _folded(label: str) -> str | None:
 _ASCII_LOWER = str.maketrans("ABCDEFGHIJKLMNOPQRSTUVWXYZ", "abcdefghijklmnopqrstuvwxyz")
 
 
-def kept_time(time: str | None) -> str | None:
+def kept_time(time: str | None, instant: int) -> str | None:
     """A node's time as its row keeps it: None when its instant spells it (a time with a zone, written in UTC as
     `normal_time` writes it), so only a time without a zone is kept as text (its instant takes it as UTC)."""
-    if time is None or time_at(instant_of(time)) == time:
+    if time is None or time_at(instant) == time:
         return None
     return time
 
