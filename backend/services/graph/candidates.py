@@ -11,6 +11,7 @@ from segb_server.backend.vocabulary import KINDS, PERFORMED_BY, PREFIXES
 
 ATTRIBUTED_TO = PREFIXES["prov"] + "wasAttributedTo"
 NOWHERE = -1  # the id of an IRI the index does not hold: matches no node
+ALL_RANKS = ", ".join(str(RANK[kind]) for kind in KINDS)
 
 
 @dataclass(frozen=True)
@@ -26,8 +27,7 @@ class GraphRequest:
 
     def iris(self) -> set[str]:
         """The IRIs the request names, whose ids its query needs."""
-        named = {PERFORMED_BY, ATTRIBUTED_TO, *(_expanded(value) for value in self.types if value not in KINDS)}
-        return named | {iri for iri in (self.robot, self.focus) if iri}
+        return {PERFORMED_BY, ATTRIBUTED_TO} | {iri for iri in (self.robot, self.focus) if iri}
 
 
 FIRST_VIEW = GraphRequest()  # the kg-graph's first view: no filter, the default limit
@@ -87,7 +87,9 @@ class CandidateQuery:
 
     def _window(self, since: str | None, until: str | None) -> None:
         """Timed nodes inside the window, and untimed nodes linked to one of them."""
-        bounds, arguments = [f"instant < {UNTIMED}"], []
+        # Every kind named, so the window is a range of instants within each kind's part of the drawing
+        # order's index: the nodes need no index of their instants of their own.
+        bounds, arguments = [f"rank IN ({ALL_RANKS})", f"instant < {UNTIMED}"], []
         if since:
             bounds.append("instant >= ?")
             arguments.append(instant_of(since))
@@ -107,13 +109,16 @@ class CandidateQuery:
     def _types(self, wanted: Sequence[str]) -> None:
         """Kinds (`robot`), class CURIEs (`oro:Robot`) or class IRIs."""
         ranks = [RANK[value] for value in wanted if value in KINDS]
-        classes = sorted({self._id(_expanded(value)) for value in wanted if value not in KINDS})
+        classes = sorted({_expanded(value) for value in wanted if value not in KINDS})
         either = []
         if ranks:
             either.append(f"n.rank IN ({', '.join('?' * len(ranks))})")
             self.condition_arguments.extend(ranks)
         if classes:
-            either.append(f"n.id IN (SELECT node FROM graph_types WHERE type IN ({', '.join('?' * len(classes))}))")
+            either.append(
+                "n.typeset IN (SELECT ts.id FROM graph_typesets ts, json_each(ts.types) c "
+                f"WHERE c.value IN ({', '.join('?' * len(classes))}))"
+            )
             self.condition_arguments.extend(classes)
         self.conditions.append(f"({' OR '.join(either)})")
 

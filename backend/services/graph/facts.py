@@ -1,4 +1,5 @@
-"""The graph index's facts (links, types, the literals it keeps) and each node's derived row (kind, time, label).
+"""The graph index's facts (links, each node's list of types, the literals it keeps) and each node's derived row
+(kind, time, label).
 
 What is drawn: every link between two resources (`rdf:type` gives node types instead) and the literals that name
 and place nodes (`DRAWN_LITERALS`); other literals the index keeps whole for resource summaries
@@ -19,7 +20,7 @@ from pyoxigraph import Literal, NamedNode, Quad
 
 from segb_server.backend.services.upkeep.terms import CHUNK, TermIds, iri_hash, texts_of
 from segb_server.backend.services.values import iso_time
-from segb_server.backend.vocabulary import KINDS, PREFIXES, Kind, compact, kind_of
+from segb_server.backend.vocabulary import KINDS, PREFIXES, Kind, kind_of
 
 RDF_TYPE = PREFIXES["rdf"] + "type"
 # Display name predicates, best first.
@@ -40,7 +41,7 @@ DRAWN_LITERALS = frozenset([*LABELS, TEXT, DESCRIPTION, *TIMES, INTENSITY])
 MAX_LABEL = 60
 UNTIMED = 1 << 62  # the instant of a node without a time: after every real one
 RANK = {kind: index for index, kind in enumerate(KINDS)}
-NO_TYPES = "[]"
+TYPESETS_REMEMBERED = 1_000  # lists of types the writer remembers with their ids (a few dozen in a real log)
 EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
 
 
@@ -57,17 +58,19 @@ class Facts:
     def __init__(self, kept_literals: frozenset[str]) -> None:
         self.kept_literals = kept_literals
         self.terms = TermIds(TERMS)
-        self._typesets: dict[str, int] = {}
+        self._typesets: dict[str, int] = {}  # a list of types as stored → its id
+        self._listed: dict[int, frozenset[str]] = {}  # and back
 
     def forget(self) -> None:
         """The tables were emptied (a build, a clearing): every id made before is gone."""
         self.terms.forget()
         self._typesets.clear()
+        self._listed.clear()
 
     def store(self, connection: sqlite3.Connection, quads: Iterable[Quad]) -> tuple[set[int], list[tuple[int, int]]]:
         """Store the drawable facts among `quads` and the kept literals; the ids of the nodes they are about, and
         the links among them ((source, target) pairs)."""
-        types: list[tuple[str, str]] = []
+        types: dict[str, set[str]] = defaultdict(set)
         literals: list[tuple[str, str, str, str | None, str | None]] = []
         links: list[tuple[str, str, str]] = []
         nodes: set[str] = set()
@@ -86,28 +89,34 @@ class Facts:
             elif isinstance(value, NamedNode):
                 nodes.add(subject.value)
                 if predicate == RDF_TYPE:
-                    types.append((subject.value, value.value))
+                    types[subject.value].add(value.value)
                 else:
                     links.append((subject.value, predicate, value.value))
                     nodes.add(value.value)
-        named = [*nodes, *(t for _, t in types), *(p for _, p, _ in links), *(p for _, p, _, _, _ in literals)]
+        named = [*nodes, *(p for _, p, _ in links), *(p for _, p, _, _, _ in literals)]
         named += [datatype for *_, datatype, _ in literals if datatype is not None]
         ids = self.terms.ids(connection, named)
-        connection.executemany(
-            "INSERT OR IGNORE INTO graph_types VALUES (?, ?)", [(ids[n], ids[t]) for n, t in types]
-        )  # fmt: skip
-        connection.executemany(
-            "INSERT INTO graph_literals VALUES (?, ?, ?, ?, ?)",
-            [(ids[n], ids[p], v, None if d is None else ids[d], lang) for n, p, v, d, lang in literals],
-        )
+        if literals:
+            # Numbered in the order they came (a node's name is its first, its time its last), from a count
+            # of every literal the index was given: each node's literals lie together, in that order.
+            (before,) = connection.execute(
+                "UPDATE graph_state SET literals = literals + ? RETURNING literals - ?", (len(literals), len(literals))
+            ).fetchone()
+            connection.executemany(
+                "INSERT INTO graph_literals VALUES (?, ?, ?, ?, ?, ?)",
+                [(ids[n], before + seq, ids[p], v, None if d is None else ids[d], lang)
+                 for seq, (n, p, v, d, lang) in enumerate(literals)],
+            )  # fmt: skip
         linked = [(ids[s], ids[p], ids[o]) for s, p, o in links]
         connection.executemany("INSERT OR IGNORE INTO graph_links VALUES (?, ?, ?)", linked)
-        empty = self._typeset(connection, NO_TYPES)
+        empty = self._typeset(connection, frozenset())
         added = connection.executemany(
             "INSERT OR IGNORE INTO graph_nodes VALUES (?, ?, ?, ?, NULL, '', NULL, ?)",
             [(ids[iri], RANK["other"], UNTIMED, tie_of(iri), empty) for iri in nodes],
         ).rowcount
         connection.execute("UPDATE graph_state SET nodes = nodes + ?", (added,))
+        if types:
+            self._add_types(connection, {ids[node]: found for node, found in types.items()})
         return {ids[iri] for iri in nodes}, [(source, target) for source, _, target in linked]
 
     def borrowers(self, connection: sqlite3.Connection, touched: set[int]) -> set[int]:
@@ -145,16 +154,11 @@ class Facts:
         (category,) = self._known(connection, [CATEGORY])
         for chunk in chunks(nodes):
             marks = ", ".join("?" * len(chunk))
-            types: dict[int, set[int]] = defaultdict(set)
-            for node, type_ in connection.execute(
-                f"SELECT node, type FROM graph_types WHERE node IN ({marks})", chunk
-            ):  # fmt: skip
-                types[node].add(type_)
-            type_iris = texts_of(connection, TERMS, {t for found in types.values() for t in found})
+            typesets = dict(connection.execute(f"SELECT id, typeset FROM graph_nodes WHERE id IN ({marks})", chunk))
             literals: dict[int, dict[str, str]] = defaultdict(dict)
             # A name or text: the first one written; a time: the last one.
             for node, predicate, value in connection.execute(
-                f"SELECT node, predicate, value FROM graph_literals WHERE node IN ({marks}) ORDER BY rowid", chunk
+                f"SELECT node, predicate, value FROM graph_literals WHERE node IN ({marks}) ORDER BY node, seq", chunk
             ):
                 name = by_id.get(predicate)
                 if name is not None and (name in TIMES or name not in literals[node]):
@@ -168,11 +172,10 @@ class Facts:
             )
             iris = texts_of(connection, TERMS, chunk)
             derived: dict[int, _Derived] = {}
-            node_types: dict[int, set[str]] = {}
             for node in chunk:
                 values = literals.get(node, {})
-                node_types[node] = {type_iris[t] for t in types.get(node, ())}
-                kind = kind_of(node_types[node], timestamped=GENERATED_AT in values)
+                types = self._types_of(connection, typesets[node]) if node in typesets else frozenset()
+                kind = kind_of(types, timestamped=GENERATED_AT in values)
                 own = next((values[p] for p in TIMES if p in values), None)
                 label = display_label(iris[node], kind, values, categories.get(node))
                 derived[node] = _Derived(kind, normal_time(own), label)
@@ -185,7 +188,7 @@ class Facts:
                 [
                     (node, RANK[d.kind], instants[node], tie_of(iris[node], timed=bool(d.time)),
                      kept_time(d.time, instants[node]), d.label, _folded(d.label),
-                     self._typeset(connection, json.dumps(sorted(compact(t) for t in node_types[node]))))
+                     typesets.get(node) or self._typeset(connection, frozenset()))
                     for node, d in derived.items()
                 ],
             )  # fmt: skip
@@ -199,15 +202,15 @@ class Facts:
         found: dict[int, str] = {}
         routes = [
             # the message -wasGeneratedBy-> activity
-            "SELECT l.source, t.predicate, t.value, t.rowid FROM graph_links l "
+            "SELECT l.source, t.predicate, t.value, t.seq FROM graph_links l "
             "JOIN graph_literals t ON t.node = l.target WHERE l.predicate = ? AND l.source IN ({marks}) "
             "AND t.predicate IN (?, ?, ?)",
             # activity -producedEntityResult|hasEmotion-> it
-            "SELECT l.target, t.predicate, t.value, t.rowid FROM graph_links l "
+            "SELECT l.target, t.predicate, t.value, t.seq FROM graph_links l "
             "JOIN graph_literals t ON t.node = l.source WHERE l.predicate IN (?, ?) AND l.target IN ({marks}) "
             "AND t.predicate IN (?, ?, ?)",
             # activity -producedEntityResult-> annotation -hasEmotion-> it
-            "SELECT l2.target, t.predicate, t.value, t.rowid FROM graph_links l2 JOIN graph_links l1 "
+            "SELECT l2.target, t.predicate, t.value, t.seq FROM graph_links l2 JOIN graph_links l1 "
             "ON l1.target = l2.source AND l1.predicate IN (?, ?) JOIN graph_literals t ON t.node = l1.source "
             "WHERE l2.predicate IN (?, ?) AND l2.target IN ({marks}) AND t.predicate IN (?, ?, ?)",
         ]
@@ -238,14 +241,45 @@ class Facts:
         ids = self.terms.ids(connection, iris)
         return [ids[iri] for iri in iris]
 
-    def _typeset(self, connection: sqlite3.Connection, listed: str) -> int:
-        """The id of a node's type list (a few dozen distinct lists cover thousands of nodes)."""
+    def _add_types(self, connection: sqlite3.Connection, added: dict[int, set[str]]) -> None:
+        """Add types to nodes (rows of graph_nodes already): each node's list of types is kept once for all the
+        nodes with that list (`graph_typesets`), so a node's types take the few bytes of its list's id."""
+        typesets: dict[int, int] = {}
+        for chunk in chunks(sorted(added)):
+            marks = ", ".join("?" * len(chunk))
+            typesets.update(connection.execute(f"SELECT id, typeset FROM graph_nodes WHERE id IN ({marks})", chunk))
+        grown = []
+        for node, new in added.items():
+            types = self._types_of(connection, typesets[node])
+            if not new <= types:
+                grown.append((self._typeset(connection, types | new), node))
+        connection.executemany("UPDATE graph_nodes SET typeset = ? WHERE id = ?", grown)
+
+    def _typeset(self, connection: sqlite3.Connection, types: frozenset[str]) -> int:
+        """The id of a list of types (IRIs): a few dozen distinct lists cover thousands of nodes."""
+        listed = json.dumps(sorted(types))
         known = self._typesets.get(listed)
         if known is None:
             connection.execute("INSERT OR IGNORE INTO graph_typesets (types) VALUES (?)", (listed,))
             known = connection.execute("SELECT id FROM graph_typesets WHERE types = ?", (listed,)).fetchone()[0]
-            self._typesets[listed] = known
+            self._remember(listed, known, types)
         return known
+
+    def _types_of(self, connection: sqlite3.Connection, typeset: int) -> frozenset[str]:
+        """The types of a list's id."""
+        types = self._listed.get(typeset)
+        if types is None:
+            (listed,) = connection.execute("SELECT types FROM graph_typesets WHERE id = ?", (typeset,)).fetchone()
+            types = frozenset(json.loads(listed))
+            self._remember(listed, typeset, types)
+        return types
+
+    def _remember(self, listed: str, typeset: int, types: frozenset[str]) -> None:
+        if len(self._listed) >= TYPESETS_REMEMBERED:  # a robot typing every node its own way: start again
+            self._typesets.clear()
+            self._listed.clear()
+        self._typesets[listed] = typeset
+        self._listed[typeset] = types
 
 
 def display_label(iri: str, kind: Kind, literals: dict[str, str], category: str | None) -> str:

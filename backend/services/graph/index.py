@@ -43,7 +43,7 @@ from segb_server.backend.services.upkeep.database import ViewDatabase
 from segb_server.backend.services.upkeep.delta import Delta
 from segb_server.backend.services.upkeep.signal import ChangeSignal
 from segb_server.backend.store.base import Store, Term
-from segb_server.backend.vocabulary import KINDS
+from segb_server.backend.vocabulary import KINDS, compact
 
 __all__ = [
     "CATEGORY",
@@ -59,7 +59,7 @@ __all__ = [
 
 logger = logging.getLogger("segb.graph")
 
-INDEX_VERSION = "6"  # bump when the stored rows change meaning: the index is then built again
+INDEX_VERSION = "7"  # bump when the stored rows change meaning: the index is then built again
 # While the first view was asked for this recently, the keeper draws it again as soon as a step changes it: the
 # viewer's next request (live viewers fetch on every change) finds it drawn. Nobody watching, nothing is drawn.
 FIRST_VIEW_WATCHED_SECONDS = 120.0
@@ -68,7 +68,6 @@ BUILD_BATCH = 20_000  # triples read from the store at a time while building
 TABLES = (
     "graph_state",
     "graph_terms",
-    "graph_types",
     "graph_literals",
     "graph_links",
     "graph_typesets",
@@ -83,24 +82,25 @@ SCHEMA = [
     # first_view: changes whenever the first view (`FIRST_VIEW`) would draw something else, so every process may
     # keep that view, the one each visit opens with, until it does
     # changes_from: the entry after which `graph_changes` holds every node each step wrote (`neighbourhoods`)
+    # literals: how many literals the index was given (their numbers in `graph_literals`)
     "CREATE TABLE IF NOT EXISTS graph_state (id INTEGER PRIMARY KEY CHECK (id = 1), version TEXT, through INTEGER, "
     "nodes INTEGER NOT NULL DEFAULT 0, changed INTEGER NOT NULL DEFAULT 0, first_view INTEGER NOT NULL DEFAULT 0, "
-    "changes_from INTEGER NOT NULL DEFAULT 0)",
+    "changes_from INTEGER NOT NULL DEFAULT 0, literals INTEGER NOT NULL DEFAULT 0)",
     # every IRI once: nodes, predicates, classes, datatypes (upkeep/terms.py)
     *terms.schema(TERMS),
     "CREATE TABLE IF NOT EXISTS graph_changes (seq INTEGER NOT NULL, node INTEGER NOT NULL)",
     "CREATE INDEX IF NOT EXISTS graph_changes_by_seq ON graph_changes (seq)",
-    "CREATE TABLE IF NOT EXISTS graph_types (node INTEGER, type INTEGER, PRIMARY KEY (node, type)) WITHOUT ROWID",
-    "CREATE INDEX IF NOT EXISTS graph_types_by_type ON graph_types (type, node)",
-    # the literals kept (those that name and place nodes, and `detail_literals`) whole, in the order they came
-    # (a node's name is its first, its time its last); datatype is NULL for a language-tagged string
-    "CREATE TABLE IF NOT EXISTS graph_literals (node INTEGER NOT NULL, predicate INTEGER NOT NULL, "
-    "value TEXT NOT NULL, datatype INTEGER, language TEXT)",
-    "CREATE INDEX IF NOT EXISTS graph_literals_by_node ON graph_literals (node, predicate)",
+    # the literals kept (those that name and place nodes, and `detail_literals`) whole, each node's together in
+    # the order they came (seq: graph_state.literals when it came; a node's name is its first, its time its
+    # last); datatype is NULL for a language-tagged string
+    "CREATE TABLE IF NOT EXISTS graph_literals (node INTEGER NOT NULL, seq INTEGER NOT NULL, "
+    "predicate INTEGER NOT NULL, value TEXT NOT NULL, datatype INTEGER, language TEXT, PRIMARY KEY (node, seq)) "
+    "WITHOUT ROWID",
     "CREATE TABLE IF NOT EXISTS graph_links (source INTEGER, predicate INTEGER, target INTEGER, "
     "PRIMARY KEY (source, predicate, target)) WITHOUT ROWID",
     "CREATE INDEX IF NOT EXISTS graph_links_by_target ON graph_links (target, predicate, source)",
-    # the distinct lists of a node's types (CURIEs, as JSON): a few dozen lists for thousands of nodes
+    # the distinct lists of a node's types (IRIs, sorted, as JSON): a few dozen lists for thousands of nodes, each
+    # node holding its list's id (`typeset`)
     "CREATE TABLE IF NOT EXISTS graph_typesets (id INTEGER PRIMARY KEY, types TEXT NOT NULL UNIQUE)",
     # rank: the kind's place in KINDS; instant: the time in microseconds (UNTIMED when none); tie: what orders
     # nodes of one kind and instant (the robots, the people), the same however they arrived (`facts.tie_of`: a
@@ -111,7 +111,7 @@ SCHEMA = [
     "instant INTEGER NOT NULL, tie NOT NULL, time TEXT, label TEXT NOT NULL, folded TEXT, "
     "typeset INTEGER NOT NULL)",
     "CREATE INDEX IF NOT EXISTS graph_nodes_order ON graph_nodes (rank, instant, tie, id)",
-    "CREATE INDEX IF NOT EXISTS graph_nodes_instant ON graph_nodes (instant)",
+    "CREATE INDEX IF NOT EXISTS graph_nodes_typeset ON graph_nodes (typeset)",  # the nodes of a class
 ]
 # What an index records as its version: a change to the tables is a new version too, so an index written before
 # it is built again instead of failing on a column it lacks.
@@ -155,7 +155,8 @@ class GraphIndex:
     def build(self, through: int) -> None:
         with self.db.writing() as connection:
             # Made again, not emptied: an index of an earlier version may have other columns.
-            for table in (*TABLES, "graph_details"):  # graph_details: version 4's, the literals kept whole
+            # graph_details: version 4's, the literals kept whole; graph_types: version 6's, each node's types
+            for table in (*TABLES, "graph_details", "graph_types"):
                 connection.execute(f"DROP TABLE IF EXISTS {table}")
             for statement in SCHEMA:
                 connection.execute(statement)
@@ -300,12 +301,13 @@ class GraphIndex:
             ):
                 outgoing.append({"resource": NamedNode(source), "predicate": NamedNode(predicate),
                                  "value": NamedNode(target)})  # fmt: skip
-            for iri, type_ in connection.execute(
-                f"SELECT s.text, o.text FROM graph_types t JOIN graph_terms s ON s.id = t.node "
-                f"JOIN graph_terms o ON o.id = t.type WHERE t.node IN ({marks})",
+            for iri, listed in connection.execute(
+                f"SELECT t.text, s.types FROM graph_nodes n JOIN graph_terms t ON t.id = n.id "
+                f"JOIN graph_typesets s ON s.id = n.typeset WHERE n.id IN ({marks})",
                 chunk,
             ):
-                outgoing.append({"resource": NamedNode(iri), "predicate": type_predicate, "value": NamedNode(type_)})
+                outgoing += [{"resource": NamedNode(iri), "predicate": type_predicate, "value": NamedNode(type_)}
+                             for type_ in json.loads(listed)]  # fmt: skip
             for iri, predicate, value, datatype, language in connection.execute(
                 f"SELECT DISTINCT s.text, p.text, l.value, d.text, l.language FROM graph_literals l "
                 f"JOIN graph_terms s ON s.id = l.node JOIN graph_terms p ON p.id = l.predicate "
@@ -373,8 +375,9 @@ def _node(rank: int, instant: int, iri: str, kept: str | None, label: str, types
 
 @lru_cache(maxsize=4096)
 def _types(listed: str) -> tuple[str, ...]:
-    """A node's stored type list, parsed once: a graph of thousands of nodes has a few dozen distinct lists."""
-    return tuple(json.loads(listed))
+    """A node's stored type list as drawn (CURIEs), made once: a graph of thousands of nodes has a few dozen
+    distinct lists."""
+    return tuple(sorted(compact(type_) for type_ in json.loads(listed)))
 
 
 def _total(connection: sqlite3.Connection, query: CandidateQuery) -> int:
