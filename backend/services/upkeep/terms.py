@@ -12,7 +12,10 @@ A view that never reads a text back from its number (the kept rows: their own va
 only find a text's number, to store it or to filter by it) keeps a table of digests instead (`texts=False`):
 the text's 128-bit digest (BLAKE2b) in place of the text, found by its first half and told apart by the other.
 Two texts would share a number only if their 128-bit digests were equal: as likely as two of git's object
-names colliding. It saves the text itself: 60 to 80 bytes an IRI.
+names colliding. It saves the text itself: 60 to 80 bytes an IRI. Its rows are kept in the order of their
+digests (a table keyed by them, so no index of them beside it) and numbered from a count kept beside them
+(`{table}_made`), which the writer moves in its own transaction: a writer in another process, later, goes on
+from where it stopped.
 """
 
 from __future__ import annotations
@@ -39,11 +42,22 @@ def iri_digest(iri: str) -> tuple[int, int]:
 
 def schema(table: str, *, texts: bool = True) -> list[str]:
     """The statements making a table of terms named `table` (of their digests when not `texts`)."""
-    told = "text TEXT NOT NULL" if texts else "tail INTEGER NOT NULL"
+    if not texts:
+        return [
+            f"CREATE TABLE IF NOT EXISTS {table} (hash INTEGER NOT NULL, tail INTEGER NOT NULL, id INTEGER NOT NULL, "
+            "PRIMARY KEY (hash, tail)) WITHOUT ROWID",
+            f"CREATE TABLE IF NOT EXISTS {table}_made (id INTEGER PRIMARY KEY CHECK (id = 1), made INTEGER NOT NULL)",
+            f"INSERT OR IGNORE INTO {table}_made VALUES (1, 0)",
+        ]
     return [
-        f"CREATE TABLE IF NOT EXISTS {table} (id INTEGER PRIMARY KEY, hash INTEGER NOT NULL, {told})",
+        f"CREATE TABLE IF NOT EXISTS {table} (id INTEGER PRIMARY KEY, hash INTEGER NOT NULL, text TEXT NOT NULL)",
         f"CREATE INDEX IF NOT EXISTS {table}_by_hash ON {table} (hash)",
     ]
+
+
+def tables(table: str, *, texts: bool = True) -> tuple[str, ...]:
+    """The tables `schema` makes."""
+    return (table,) if texts else (table, f"{table}_made")
 
 
 class TermIds:
@@ -76,15 +90,27 @@ class TermIds:
                 if self.texts:
                     rows = [(iri_hash(iri), iri) for iri in new]
                     connection.executemany(f"INSERT INTO {self.table} (hash, text) VALUES (?, ?)", rows)
+                    stored.update(lookup(connection, self.table, new))
                 else:
-                    connection.executemany(f"INSERT INTO {self.table} (hash, tail) VALUES (?, ?)", map(iri_digest, new))
-                stored.update(lookup(connection, self.table, new, texts=self.texts))
+                    stored.update(self._numbered(connection, new))
             found.update(stored)
             for iri in missing:
                 self._ids[iri] = stored[iri]
             while len(self._ids) > self._remembered:
                 self._ids.popitem(last=False)
         return found
+
+    def _numbered(self, connection: sqlite3.Connection, new: list[str]) -> dict[str, int]:
+        """Digests of texts the table does not hold, written with the next numbers of its count."""
+        (last,) = connection.execute(
+            f"UPDATE {self.table}_made SET made = made + ? RETURNING made - ?", (len(new), len(new))
+        ).fetchone()
+        numbers = {iri: last + offset for offset, iri in enumerate(new, start=1)}
+        connection.executemany(
+            f"INSERT INTO {self.table} (hash, tail, id) VALUES (?, ?, ?)",
+            [(*iri_digest(iri), number) for iri, number in numbers.items()],
+        )
+        return numbers
 
 
 def lookup(connection: sqlite3.Connection, table: str, iris: Collection[str], *, texts: bool = True) -> dict[str, int]:

@@ -34,7 +34,7 @@ from segb_server.backend.store.terms import bind_texts, bind_values, term_text
 
 logger = logging.getLogger("segb.reports")
 
-PLAN_VERSION = "10"  # bump when the stored layout changes: every report is then built again
+PLAN_VERSION = "11"  # bump when the stored layout changes: every report is then built again
 CHANGES_KEPT = 20_000
 
 

@@ -281,9 +281,9 @@ def _named(row: Row, variable: str) -> bool:
     return isinstance(row.get(variable), NamedNode)
 
 
-TERMS = "report_term_digests"  # units and the IRIs filters compare, as numbers (upkeep/terms.py, by digest)
+TERMS = "report_term_numbers"  # units and the IRIs filters compare, as numbers (upkeep/terms.py, by digest)
 # the database's own, beside each report's tables
-OWN_TABLES = ("report_state", "report_changes", TERMS, DICTIONARIES, KEY_NAMESPACES)
+OWN_TABLES = ("report_state", "report_changes", *terms.tables(TERMS, texts=False), DICTIONARIES, KEY_NAMESPACES)
 
 
 class KeptRows:
