@@ -144,6 +144,8 @@ def test_a_class_filter_finds_a_nodes_classes_whichever_step_brought_them(store:
     outgoing, _ = index.statements([HUMAN], incoming=set(), incoming_limit=5)
     told = {str(row["value"].value) for row in outgoing if row["predicate"] == NamedNode(RDF_TYPE)}  # type: ignore[union-attr]
     assert told == {PREFIXES["foaf"] + "Person", PREFIXES["oro"] + "Human", unlisted}
+    lists = [row[0] for row in index.db.reader().execute("SELECT types FROM graph_typesets WHERE types != '[]'")]
+    assert len(lists) == 4  # the robot's, the message's, the activity's and Maria's: none she held before
     fresh = GraphIndex(store, None)
     fresh.build(through=4)
     for request in (GraphRequest(), GraphRequest(types=("oro:Human", "message"))):
@@ -162,4 +164,17 @@ def test_a_time_window_reads_ranges_of_the_drawing_orders_index(store: OxigraphS
     assert "SEARCH graph_nodes USING COVERING INDEX graph_nodes_order (rank=? AND instant>? AND instant<?)" in plan
     assert not any(step.startswith("SCAN graph_nodes") for step in plan), plan
     assert nodes(index, since=request.since, until=request.until).keys() == {ACTIVITY, MESSAGE, ROBOT, HUMAN}
+    index.close()
+
+
+def test_a_node_typed_again_and_again_keeps_one_list_of_its_types(store: OxigraphStore) -> None:
+    # A robot adding a class to one node in every post: the lists it leaves behind go, or they would hold the
+    # square of its classes.
+    steps = [[Quad(NamedNode(HUMAN), NamedNode(RDF_TYPE), NamedNode(f"https://example.org/classes/C{n}"))]
+             for n in range(60)]  # fmt: skip
+    index = kept(store, PEOPLE, *steps)
+    lists = [row[0] for row in index.db.reader().execute("SELECT types FROM graph_typesets WHERE types != '[]'")]
+    assert len(lists) == 2 and sum(len(listed) for listed in lists) < 60 * 40 + 200  # the robot's and hers
+    assert len(nodes(index)[HUMAN]["types"]) == 61
+    assert nodes(index, types=("https://example.org/classes/C7",)).keys() == {HUMAN}
     index.close()

@@ -254,6 +254,19 @@ class Facts:
             if not new <= types:
                 grown.append((self._typeset(connection, types | new), node))
         connection.executemany("UPDATE graph_nodes SET typeset = ? WHERE id = ?", grown)
+        self._drop_unheld(connection, {typesets[node] for _, node in grown})
+
+    def _drop_unheld(self, connection: sqlite3.Connection, typesets: set[int]) -> None:
+        """Drop the lists no node holds any more (a node's list grew): a robot typing one node again and again
+        leaves one list of its types, not one for every step (which would grow as the square of its types)."""
+        empty = self._typeset(connection, frozenset())  # held by every node until its types come
+        for typeset in sorted(typesets - {empty}):
+            if connection.execute("SELECT 1 FROM graph_nodes WHERE typeset = ? LIMIT 1", (typeset,)).fetchone():
+                continue
+            connection.execute("DELETE FROM graph_typesets WHERE id = ?", (typeset,))
+            types = self._listed.pop(typeset, None)
+            if types is not None:
+                self._typesets.pop(json.dumps(sorted(types)), None)
 
     def _typeset(self, connection: sqlite3.Connection, types: frozenset[str]) -> int:
         """The id of a list of types (IRIs): a few dozen distinct lists cover thousands of nodes."""
