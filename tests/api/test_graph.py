@@ -52,6 +52,11 @@ def test_graph_filters_kinds_time_search_and_limit(api: InProcess) -> None:
     scenario.publish_all(api.client)
     people = get(api, "/graph", types="robot,human").json()
     assert sorted(node["label"] for node in people["nodes"]) == ["ARI", "Juan", "Maria", "TIAGo"]
+    robots = get(api, "/graph", types="oro:Robot").json()  # a class, as the robots typed them
+    assert sorted(node["label"] for node in robots["nodes"]) == ["ARI", "TIAGo"] and robots["total_nodes"] == 2
+    assert all("oro:Robot" in node["types"] for node in robots["nodes"])
+    humans = get(api, "/graph", types="http://kb.openrobots.org#Human,robot").json()  # a class IRI and a kind
+    assert sorted(node["label"] for node in humans["nodes"]) == ["ARI", "Juan", "Maria", "TIAGo"]
     window = get(api, "/graph", since="2026-03-10T09:00:08Z", until="2026-03-10T09:00:10Z", types="message").json()
     assert sorted(node["label"] for node in window["nodes"]) == ["Congratulations, Maria!", "Second floor, Juan."]
     found = get(api, "/graph", q="pharmacy").json()
