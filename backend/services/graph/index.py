@@ -86,7 +86,7 @@ SCHEMA = [
     "CREATE TABLE IF NOT EXISTS graph_state (id INTEGER PRIMARY KEY CHECK (id = 1), version TEXT, through INTEGER, "
     "nodes INTEGER NOT NULL DEFAULT 0, changed INTEGER NOT NULL DEFAULT 0, first_view INTEGER NOT NULL DEFAULT 0, "
     "changes_from INTEGER NOT NULL DEFAULT 0, literals INTEGER NOT NULL DEFAULT 0)",
-    # every IRI once: nodes, predicates, classes, datatypes (upkeep/terms.py)
+    # every IRI once: nodes, predicates, datatypes (upkeep/terms.py; classes are in the lists of types)
     *terms.schema(TERMS),
     "CREATE TABLE IF NOT EXISTS graph_changes (seq INTEGER NOT NULL, node INTEGER NOT NULL)",
     "CREATE INDEX IF NOT EXISTS graph_changes_by_seq ON graph_changes (seq)",
