@@ -22,7 +22,6 @@ a longer history does not change it.
 from __future__ import annotations
 
 import argparse
-import os
 import re
 import sys
 import tempfile
@@ -33,7 +32,7 @@ from dataclasses import dataclass
 from itertools import islice
 from pathlib import Path
 
-from bench.measure import machine
+from bench.measure import cpu_seconds, machine
 from bench.one_robot import OneRobot, one_robot
 from bench.views_cpu import post_in_process
 from segb_server.backend.config import Settings
@@ -75,12 +74,6 @@ class Cost:
     @property
     def planning_share(self) -> float:
         return max(0.0, self.new_cpu_ms - self.same_cpu_ms) / self.new_cpu_ms if self.new_cpu_ms else 0.0
-
-
-def cpu_seconds(pid: int) -> float:
-    """User and system CPU of a process, from /proc (fields 14 and 15, after the command's parentheses)."""
-    fields = Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def keyed_queries(texts: list[str], visit: int) -> list[str]:
