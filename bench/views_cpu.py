@@ -131,7 +131,7 @@ def post_in_process(services: Services, payload: str) -> int:
     return result.sequence
 
 
-def markdown(rounds: list[Round], command: str) -> str:
+def markdown(rounds: list[Round], command: str, virtuoso: bool = False) -> str:
     on = [r for r in rounds if r.views]
     off = [r for r in rounds if not r.views]
     rate_on = statistics.median(r.posts_per_second for r in on)
@@ -153,11 +153,12 @@ def markdown(rounds: list[Round], command: str) -> str:
         f"| of which the views' updates (their threads' CPU) | {views_cpu:.2f} | 0 | |",
         *(
             [
-                f"| Virtuoso's CPU ms / post | {store_on:.2f} | {store_off:.2f} | {store_on / store_off:.2f} |",
+                f"| Virtuoso's CPU ms / post | {store_on:.2f} | {store_off:.2f} | "
+                f"{store_on / store_off if store_off else 0:.2f} |",
                 f"| most posts/s {cores} cores could answer, Virtuoso's CPU included | "
                 f"{cores * 1000 / (cpu_on + store_on):.0f} | {cores * 1000 / (cpu_off + store_off):.0f} | |",
             ]
-            if store_off
+            if virtuoso
             else []
         ),
         f"| most posts/s {cores} cores could answer at that CPU a post | {cores * 1000 / cpu_on:.0f} | "
@@ -195,7 +196,7 @@ def main(argv: list[str] | None = None) -> int:
     defaults = args.posts == POSTS and args.rounds == ROUNDS
     command = "python -m bench.views_cpu" + ("" if defaults else f" --posts {args.posts} --rounds {args.rounds}")
     command += "" if args.store == "oxigraph" else f" --store {args.store}"
-    print(markdown(rounds, command))
+    print(markdown(rounds, command, virtuoso=args.store == "virtuoso"))
     print("\nmachine: " + "; ".join(f"{k} {v}" for k, v in machine().items()))
     return 0
 
