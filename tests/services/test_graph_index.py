@@ -4,11 +4,13 @@ links drawn once, a clearing, and the statements it can tell in the store's plac
 
 from __future__ import annotations
 
+import sqlite3
 from collections.abc import Iterator
 
 import pytest
 from pyoxigraph import Literal, NamedNode, Quad
 
+from segb_server.backend.services.graph import index as graph_index
 from segb_server.backend.services.graph.candidates import CandidateQuery
 from segb_server.backend.services.graph.index import GraphIndex, GraphRequest
 from segb_server.backend.services.upkeep.delta import Delta
@@ -177,4 +179,29 @@ def test_a_node_typed_again_and_again_keeps_one_list_of_its_types(store: Oxigrap
     assert len(lists) == 2 and sum(len(listed) for listed in lists) < 60 * 40 + 200  # the robot's and hers
     assert len(nodes(index)[HUMAN]["types"]) == 61
     assert nodes(index, types=("https://example.org/classes/C7",)).keys() == {HUMAN}
+    index.close()
+
+
+def test_a_step_whose_write_failed_leaves_no_ids_behind_in_the_writers_memory(
+    store: OxigraphStore, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A write that fails (a full disk) rolls its transaction back, ids made in it included: taking the step again
+    must make them again, not reuse ids the tables never kept."""
+    index = kept(store, PEOPLE)
+    store.apply(SAID + WHEN, 2)
+
+    def disk_full(*_: object) -> None:
+        raise sqlite3.OperationalError("database or disk is full")
+
+    with monkeypatch.context() as patched:
+        patched.setattr(graph_index, "_record_changes", disk_full)
+        with pytest.raises(sqlite3.OperationalError):
+            index.update(Delta.of(SAID + WHEN), 2)
+    index.update(Delta.of(SAID + WHEN), 2)  # the step taken again
+    fresh = GraphIndex(store, None)
+    fresh.build(through=2)
+    for request in (GraphRequest(), GraphRequest(types=("oro:Human",)), GraphRequest(focus=MESSAGE)):
+        assert index.view(request) == fresh.view(request), request
+    assert set(nodes(index)) == {ROBOT, HUMAN, ACTIVITY, MESSAGE}
+    fresh.close()
     index.close()

@@ -4,10 +4,12 @@ text itself, or (the kept rows' table) by a 128-bit digest that keeps no text at
 from __future__ import annotations
 
 import sqlite3
+from pathlib import Path
 
 import pytest
 
 from segb_server.backend.services.upkeep import terms
+from segb_server.backend.services.upkeep.kept_queries.rows import TERMS, KeptRows
 from segb_server.backend.services.upkeep.terms import TermIds, iri_digest, iri_hash
 
 IRIS = [f"https://example.org/robots/ari/visitor_{index}" for index in range(1_000)]
@@ -57,3 +59,24 @@ def test_two_texts_sharing_a_hash_keep_their_own_numbers(texts: bool) -> None:
     made = TermIds("t", texts=texts).ids(connection, [IRIS[0]])
     assert made[IRIS[0]] == 2
     assert terms.lookup(connection, "t", [IRIS[0]], texts=texts) == {IRIS[0]: 2}
+
+
+def test_numbers_made_in_a_transaction_that_rolled_back_are_made_again(tmp_path: Path) -> None:
+    """A report's write that fails (a full disk) rolls back the numbers it made and the count they came from: the
+    writer must not go on using them, or the next text would get a number another already has in its memory."""
+    rows = KeptRows(tmp_path / "reports.sqlite3")
+    try:
+        with pytest.raises(sqlite3.OperationalError), rows.db.writing() as connection:
+            first = rows.terms.ids(connection, IRIS[:3])
+            rows.namespaces.for_writing(connection, "report_x", IRIS[:3])  # a table's first keys' namespaces
+            raise sqlite3.OperationalError("database or disk is full")
+        with rows.db.writing() as connection:
+            again = rows.terms.ids(connection, [IRIS[3], *IRIS[:3]])
+            written = rows.namespaces.for_writing(connection, "report_x", IRIS[:3])
+        # the namespaces rows are written with are those a reader finds (made again, not remembered)
+        assert rows.namespaces.for_reading(rows.db.reader(), "report_x").entries == written.entries != ()
+        assert len(set(again.values())) == 4, again  # four texts, four numbers
+        assert terms.lookup(rows.db.reader(), TERMS, IRIS[:4], texts=False) == again  # what the table holds
+        assert first  # they had been made, in the transaction that rolled back
+    finally:
+        rows.db.close()

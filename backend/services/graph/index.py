@@ -129,6 +129,7 @@ class GraphIndex:
         # store when a resource's summary needs only these (an explanation's texts, versions, confidences).
         self.kept_literals = DRAWN_LITERALS | frozenset(detail_literals)
         self._facts = Facts(self.kept_literals)
+        self.db.on_rollback(self._facts.forget)  # ids and lists of types made in a failed step went with it
         self.ready = False
         # The journal entry of the last change to what is drawn: live viewers fetch their view again when it
         # moves. Kept in memory by the process that keeps the index, read by `follow` in the others.

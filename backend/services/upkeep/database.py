@@ -12,7 +12,7 @@ import shutil
 import sqlite3
 import tempfile
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from types import TracebackType
@@ -30,6 +30,7 @@ class ViewDatabase:
         self._writing_thread: int | None = None  # the thread inside `writing()`, whose nested blocks join it
         self._readers: dict[threading.Thread, sqlite3.Connection] = {}
         self._readers_lock = threading.Lock()
+        self._rollback_listeners: list[Callable[[], None]] = []
         setup = self._connect()
         try:
             setup.execute("PRAGMA journal_mode=WAL")
@@ -84,6 +85,12 @@ class ViewDatabase:
         inside another, on the same thread, joins the outer transaction (several changes, one commit)."""
         return _Writing(self)
 
+    def on_rollback(self, listener: Callable[[], None]) -> None:
+        """Call `listener` (on the writer's thread, before the next writer starts) whenever a write transaction
+        is rolled back: what a writer remembers having written in it (the ids it made, a table's dictionary)
+        went with it, and kept, would name rows the tables do not hold or numbers the next writer hands out again."""
+        self._rollback_listeners.append(listener)
+
     def close(self) -> None:
         with self._readers_lock:
             for connection in self._readers.values():
@@ -117,10 +124,22 @@ class _Writing:
     ) -> None:
         if not self._outermost:
             return  # an error leaves through the outer block too, which rolls the whole transaction back
-        connection = self._database._writer
+        database = self._database
+        connection = database._writer
+        rolled_back = kind is not None
         try:
             if connection is not None:
-                connection.execute("ROLLBACK" if kind is not None else "COMMIT")
+                connection.execute("ROLLBACK" if rolled_back else "COMMIT")
+        except BaseException:
+            rolled_back = True  # a commit that failed (a full disk): the transaction goes
+            if connection is not None and connection.in_transaction:
+                connection.execute("ROLLBACK")
+            raise
         finally:
-            self._database._writing_thread = None
-            self._database._writer_lock.release()
+            try:
+                if rolled_back:
+                    for listener in database._rollback_listeners:
+                        listener()
+            finally:
+                database._writing_thread = None
+                database._writer_lock.release()

@@ -142,5 +142,9 @@ class KeyNamespaces:
         """The namespaces of `tables` (of every table: None) go with their rows."""
         per_table.forget(connection, KEY_NAMESPACES, self._writing, tables)
 
+    def forget_made(self) -> None:
+        """The writer's transaction rolled back: the namespaces it remembers are read (or made) again."""
+        self._writing.clear()
+
     def keep_only(self, connection: sqlite3.Connection, tables: Collection[str]) -> None:
         self.forget(connection, per_table.dropped(connection, KEY_NAMESPACES, tables))

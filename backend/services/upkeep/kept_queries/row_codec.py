@@ -93,6 +93,10 @@ class RowCodec:
         the writer's transaction that empties or drops those tables."""
         per_table.forget(connection, DICTIONARIES, self._compressors, tables)
 
+    def forget_made(self) -> None:
+        """The writer's transaction rolled back: the dictionaries it remembers are read (or made) again."""
+        self._compressors.clear()
+
     def keep_only(self, connection: sqlite3.Connection, tables: Collection[str]) -> None:
         """The dictionaries of tables but `tables` go (those tables were dropped)."""
         self.forget(connection, per_table.dropped(connection, DICTIONARIES, tables))

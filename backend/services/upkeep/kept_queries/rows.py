@@ -305,6 +305,7 @@ class KeptRows:
         self.terms = TermIds(TERMS, texts=False)
         self.codec = RowCodec()
         self.namespaces = KeyNamespaces()
+        self.db.on_rollback(self._forget_made)
 
     # --- state ---------------------------------------------------------------------------------------
 
@@ -413,6 +414,12 @@ class KeptRows:
             self.codec.forget(connection, layout.own_tables)
             self.namespaces.forget(connection, layout.own_tables)
         # The terms stay (other reports' rows refer to them): a few numbers for IRIs no row holds any more.
+
+    def _forget_made(self) -> None:
+        """A write transaction rolled back: the numbers, dictionaries and namespaces made in it went with it."""
+        self.terms.forget()
+        self.codec.forget_made()
+        self.namespaces.forget_made()
 
     def forget_erased(self) -> None:
         """An erasure: every report of these rows is cleared and built again; the table of terms and the change
