@@ -118,6 +118,12 @@ class Database(ABC):
         """Leave nothing removed in the database's files where this server can see to it (after an erasure)."""
         return None
 
+    def reader(self) -> Database:
+        """A database to read this one's committed state through without waiting for its write transactions
+        (another connection, where the database lets one read beside a writer); this one where it does not.
+        Its caller closes it when it is not this one."""
+        return self
+
     def ping(self) -> None:
         """Raise StateUnavailable unless the database answers."""
         self.execute("SELECT 1").fetchone()

@@ -39,7 +39,7 @@ def vacuum(path: Path) -> None:
 class SqliteDatabase(Database):
     kind = "sqlite"
 
-    def __init__(self, path: Path | None, *, sync_full: bool = False) -> None:
+    def __init__(self, path: Path | None, *, sync_full: bool = False, reads_only: bool = False) -> None:
         super().__init__()
         self.path = path
         self.where = str(path.parent) if path is not None else "memory"
@@ -50,8 +50,10 @@ class SqliteDatabase(Database):
         )
         # Writers of other processes (API workers) queue on this lock, which wakes the next one as soon as it is
         # released; SQLite's own busy wait sleeps in steps of up to 100 ms.
-        self._writers = None if path is None else FileLock(path.with_name(f"{path.name}.lock"))
-        if path is not None:
+        self._writers = None if path is None or reads_only else FileLock(path.with_name(f"{path.name}.lock"))
+        if path is not None and reads_only:
+            self._connection.execute("PRAGMA query_only=ON")
+        elif path is not None:
             # WAL: a commit is durable across a crash of the server process. NORMAL sync leaves the newest
             # commits to the operating system's cache on a power cut; FULL syncs every commit (slower).
             self._connection.execute("PRAGMA journal_mode=WAL")
@@ -80,6 +82,11 @@ class SqliteDatabase(Database):
         with self._lock:
             if self._connection.in_transaction:
                 self._connection.execute("ROLLBACK")
+
+    def reader(self) -> Database:
+        # In WAL mode a second connection reads the last committed state while a write transaction runs (and
+        # syncs its commit); a database in memory exists for its one connection only.
+        return self if self.path is None else SqliteDatabase(self.path, reads_only=True)
 
     def size_bytes(self) -> int:
         # Pages, not the file's size: inside a transaction they count what it is about to add.

@@ -3,7 +3,10 @@ them, entries read back as the applier reads them, the chain verified, the size 
 
 from __future__ import annotations
 
+import concurrent.futures
+import threading
 import uuid
+from pathlib import Path
 
 import pytest
 from pyoxigraph import Literal, NamedNode, Quad
@@ -122,3 +125,35 @@ def test_known_digests_keep_what_is_still_re_sent() -> None:
     known.update([b"f", b"g"])
     assert len(known) == 5  # f, g and the previous d, e, a: b and c, not re-sent, were forgotten
     assert b"b" not in known and b"c" not in known and b"a" in known and b"g" in known
+
+
+def test_reads_answer_from_the_last_commit_while_a_write_transaction_is_open(tmp_path: Path) -> None:
+    """The applier reading the entries just recorded, and posts asking how far behind the store is, do not wait
+    for the next batch's transaction (its commit syncs the disk): on a file they read through a connection of
+    their own, and see what was committed."""
+    journal = Journal(SqliteDatabase(tmp_path / "journal.sqlite3"))
+    journal.append_posts([post(quad("a", "hi"))])
+    writing, release = threading.Event(), threading.Event()
+
+    def hold_a_write_transaction() -> None:
+        with journal.database.writing():
+            journal.database.execute("UPDATE receipts SET triples_new = 7 WHERE sequence = 1")
+            writing.set()
+            release.wait(10)
+
+    writer = threading.Thread(target=hold_a_write_transaction)
+    writer.start()
+    try:
+        assert writing.wait(5)
+        with concurrent.futures.ThreadPoolExecutor(1) as pool:
+            reads = pool.submit(lambda: (journal.head(), journal.entries_after(0, 10), journal.page(10, 0)))
+            head, entries, (receipts, total) = reads.result(timeout=5)  # before the fix: blocked until release
+        assert head == 1 and [entry.sequence for entry in entries] == [1] and total == 1
+        assert receipts[0].triples_new == 1  # the committed state, not the open transaction's
+    finally:
+        release.set()
+        writer.join()
+    assert journal.page(10, 0)[0][0].triples_new == 7
+    journal.append_posts([post(quad("b", "bye"))])
+    assert journal.head() == 2 and journal.entries_after(1, 10)[0].content == f'<{EX}b> <{EX}says> "bye" .\n'.encode()
+    journal.close()

@@ -120,6 +120,8 @@ class Journal(JournalReads):
         self.database = database
         self.max_bytes = max_bytes
         self._lock = threading.Lock()
+        self._reads = database.reader()
+        self._reads_lock = threading.Lock()
         # This process's posts pass it on their way in; an erasure may hold them at it (`posts_held`).
         self._admission = threading.Lock()
         # Digests known to be in the journal since the last clearing, for this epoch: re-published triples
@@ -274,7 +276,9 @@ class Journal(JournalReads):
         )
 
     def close(self) -> None:
-        with self._lock:
+        with self._lock, self._reads_lock:
+            if self._reads is not self.database:
+                self._reads.close()
             self.database.close()
 
     # --- plumbing --------------------------------------------------------------------------------------

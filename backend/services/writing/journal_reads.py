@@ -1,6 +1,7 @@
 """Reading the journal: receipts, entries for the applier and the views, the content of posts, the erasures'
-records, and the verification of the chain. The journal (journal.py) writes; this is what it reads, shared by
-every caller under the journal's one lock."""
+records, and the verification of the chain. The journal (journal.py) writes; this is what it reads, through a
+connection of its own where the database allows one (`Database.reader`): the applier reading the entries just
+recorded, and posts asking how far behind the store is, then never wait for the next batch's commit to sync."""
 
 from __future__ import annotations
 
@@ -32,27 +33,25 @@ class JournalEntry:
 
 
 class JournalReads:
-    """The journal's reads; `database` and `_lock` are the journal's."""
+    """The journal's reads; `_reads` is the journal's reading connection, each call's statements under `_reads_lock`."""
 
-    database: Database
-    _lock: threading.Lock
+    _reads: Database
+    _reads_lock: threading.Lock
     _recorded: dict[int, float]  # the journal's own latest entries: when this process recorded them
 
     def page(self, limit: int, offset: int) -> tuple[list[Receipt], int]:
         """Receipts newest first, and how many there are in all."""
-        with self._lock:
-            total = self.database.execute("SELECT COUNT(*) FROM receipts").fetchone()[0]
-            rows = self.database.execute(
+        with self._reads_lock, self._reads.reading():  # the count and the page of one state
+            total = self._reads.execute("SELECT COUNT(*) FROM receipts").fetchone()[0]
+            rows = self._reads.execute(
                 f"SELECT {COLUMNS} FROM receipts ORDER BY sequence DESC LIMIT ? OFFSET ?", (limit, offset)
             ).fetchall()
         return [Receipt(*row) for row in rows], total
 
     def entry(self, log_id: str) -> tuple[Receipt, bytes | None]:
         """A receipt and its content as received (None for a receipt from before the journal kept content)."""
-        with self._lock:
-            row = self.database.execute(
-                f"SELECT {COLUMNS}, content FROM receipts WHERE log_id = ?", (log_id,)
-            ).fetchone()
+        with self._reads_lock:
+            row = self._reads.execute(f"SELECT {COLUMNS}, content FROM receipts WHERE log_id = ?", (log_id,)).fetchone()
         if row is None:
             raise NotFound(f"No receipt with log_id '{log_id}'.")
         receipt = Receipt(*row[:-1])
@@ -63,8 +62,8 @@ class JournalReads:
         known = self._recorded.get(sequence)
         if known is not None:
             return max(0.0, time.time() - known)
-        with self._lock:
-            row = self.database.execute("SELECT recorded_at FROM receipts WHERE sequence = ?", (sequence,))
+        with self._reads_lock:
+            row = self._reads.execute("SELECT recorded_at FROM receipts WHERE sequence = ?", (sequence,))
             found = row.fetchone()
         if found is None:
             return 0.0
@@ -72,13 +71,13 @@ class JournalReads:
         return max(0.0, (datetime.now(UTC) - recorded).total_seconds())
 
     def head(self) -> int:
-        with self._lock:
-            return self._head(self.database)[0]
+        with self._reads_lock:
+            return self._head(self._reads)[0]
 
     def entries_after(self, sequence: int, limit: int) -> list[JournalEntry]:
         """Up to `limit` entries after `sequence`, oldest first, content decompressed."""
-        with self._lock:
-            rows = self.database.execute(
+        with self._reads_lock:
+            rows = self._reads.execute(
                 "SELECT r.sequence, r.action, r.content, p.content FROM receipts r "
                 "LEFT JOIN erasure_pending p ON p.sequence = r.sequence WHERE r.sequence > ? "
                 "ORDER BY r.sequence LIMIT ?",
@@ -91,15 +90,15 @@ class JournalReads:
 
     def last_clearing(self) -> int:
         """The sequence of the newest clearing (0 when there was none): the store holds what came after it."""
-        with self._lock:
-            found = self.database.execute("SELECT MAX(sequence) FROM receipts WHERE action = 'delete_all'")
+        with self._reads_lock:
+            found = self._reads.execute("SELECT MAX(sequence) FROM receipts WHERE action = 'delete_all'")
             return found.fetchone()[0] or 0
 
     def last_applied_erasure(self) -> int:
         """The newest erasure the store has applied, as far as the journal knows (its removed lines are no
         longer kept); 0 when there is none."""
-        with self._lock:
-            found = self.database.execute(
+        with self._reads_lock:
+            found = self._reads.execute(
                 "SELECT MAX(sequence) FROM receipts WHERE action = 'erase' "
                 "AND sequence NOT IN (SELECT sequence FROM erasure_pending)"
             )
@@ -123,8 +122,8 @@ class JournalReads:
             "ORDER BY sequence LIMIT ?"
         )
         while True:
-            with self._lock:
-                rows = self.database.execute(query, (position, batch)).fetchall()
+            with self._reads_lock:
+                rows = self._reads.execute(query, (position, batch)).fetchall()
             if not rows:
                 return
             for row in rows:
@@ -135,8 +134,8 @@ class JournalReads:
         """Every receipt after `sequence`, oldest first."""
         position = sequence
         while True:
-            with self._lock:
-                rows = self.database.execute(
+            with self._reads_lock:
+                rows = self._reads.execute(
                     f"SELECT {COLUMNS} FROM receipts WHERE sequence > ? ORDER BY sequence LIMIT ?", (position, batch)
                 ).fetchall()
             if not rows:
@@ -146,8 +145,8 @@ class JournalReads:
 
     def redaction_records(self) -> list[tuple[Receipt, RedactionRecord]]:
         """Every erasure's receipt and record, oldest first."""
-        with self._lock:
-            rows = self.database.execute(
+        with self._reads_lock:
+            rows = self._reads.execute(
                 f"SELECT {COLUMNS}, content FROM receipts WHERE action = 'erase' ORDER BY sequence"
             ).fetchall()
         return [(Receipt(*row[:-1]), RedactionRecord.parse(inflate(row[-1]))) for row in rows]
@@ -159,16 +158,16 @@ class JournalReads:
         check = ChainCheck()
         columns = f"{COLUMNS}, content, redacted_digests" if deep else COLUMNS
         query = f"SELECT {columns} FROM receipts WHERE sequence > ? ORDER BY sequence LIMIT {_ROWS_PER_VERIFY}"
-        with self._lock, self.database.reading():
+        with self._reads_lock, self._reads.reading():
             records = [
                 (sequence, RedactionRecord.parse(inflate(blob)))
-                for sequence, blob in self.database.execute(
+                for sequence, blob in self._reads.execute(
                     "SELECT sequence, content FROM receipts WHERE action = 'erase'"
                 ).fetchall()
             ]
             redactions = RedactionCheck(records)
             position = 0
-            while rows := self.database.execute(query, (position,)).fetchall():
+            while rows := self._reads.execute(query, (position,)).fetchall():
                 for row in rows:
                     receipt = Receipt(*row[: len(FIELD_NAMES)])
                     fault = redactions.fault(receipt, inflate(row[-2]), row[-1] or b"") if deep else None
