@@ -41,6 +41,6 @@ def forgetting(
             vacuum(path)
 
     return Forgetting(
-        now=[lambda _what: journal.database.compact(), shared_contexts, log, lambda _what: queries.forget()],
+        now=[lambda _what: journal.compact(), shared_contexts, log, lambda _what: queries.forget()],
         after_views=[views, log],  # the log again: lines written while the views were built
     )
