@@ -183,7 +183,7 @@ def soak(
             client.publish(robot.first)
         # The run measures a server in its stride: every view built (the audit rules' SHACL check among them)
         # before the clock starts, as after a deployment's first start.
-        if _caught_up(server.url, timeout=600) is None:
+        if caught_up(server.url, timeout=600) is None:
             raise BenchError("the views were not built within 10 minutes of the start")
         posting, samples = Posting(), Samples()
         stop = threading.Event()
@@ -198,7 +198,7 @@ def soak(
             ),
         ]
         posters = [
-            threading.Thread(target=_post, args=(server.url, robot, posting, stop, workers > 1), daemon=True)
+            threading.Thread(target=post_visits, args=(server.url, robot, posting, stop, workers > 1), daemon=True)
             for _ in range(clients)
         ]
         for thread in [*watchers, *posters]:
@@ -208,7 +208,7 @@ def soak(
         for thread in posters:
             thread.join()
         posting.seconds = time.monotonic() - started
-        caught_up = _caught_up(server.url)
+        drained = caught_up(server.url)
         for thread in watchers:
             thread.join()
         stored = _stored_triples(server.url)
@@ -218,7 +218,7 @@ def soak(
         if server_log is not None:
             server_log.write_text(server.log_text())
     return SoakFigures(
-        store, minutes, clients, keep_views, workers, posting, samples, caught_up, stored, expected, disk, breakdown
+        store, minutes, clients, keep_views, workers, posting, samples, drained, stored, expected, disk, breakdown
     )
 
 
@@ -277,7 +277,7 @@ def _server(
             yield server, data_dir
 
 
-def _post(url: str, robot: OneRobot, posting: Posting, stop: threading.Event, connection_per_post: bool) -> None:
+def post_visits(url: str, robot: OneRobot, posting: Posting, stop: threading.Event, connection_per_post: bool) -> None:
     """Posts visits until stopped. With several API workers, a new connection for each post, as the PyPI client
     makes: four kept-alive connections would all be served by whichever workers accepted them first."""
     with Client(url, timeout=120, connection_per_request=connection_per_post) as client:
@@ -345,7 +345,7 @@ def _progress(posting: Posting, samples: Samples, stop: threading.Event, started
               f"RSS {rss:.0f} MiB, errors {len(posting.errors)}", file=sys.stderr, flush=True)  # fmt: skip
 
 
-def _caught_up(url: str, timeout: float = 1800) -> float | None:
+def caught_up(url: str, timeout: float = 1800) -> float | None:
     begin = time.monotonic()
     with httpx.Client(base_url=url, timeout=30) as client:
         while time.monotonic() - begin < timeout:
