@@ -159,11 +159,12 @@ def markdown(runs: list[Run], against: str, command: str) -> str:
     mine = [run for run in runs if run.version == "this tree"]
     theirs = [run for run in runs if run.version == against]
 
-    def listed(selected: list[Run], field: str) -> str:
-        values = [getattr(run, field) for run in selected]
-        median = statistics.median(values)
-        return f"{', '.join(f'{value:.0f}' if field == 'posts_per_second' else f'{value:.2f}' for value in values)} " \
-               f"(median {median:.0f})" if field == "posts_per_second" else f"{median:.2f}"  # fmt: skip
+    def rates(selected: list[Run]) -> str:
+        values = [run.posts_per_second for run in selected]
+        return f"{', '.join(f'{value:.0f}' for value in values)} (median {statistics.median(values):.0f})"
+
+    def cpu(selected: list[Run], field: str) -> str:
+        return f"{statistics.median(getattr(run, field) for run in selected):.2f}"
 
     ratio = statistics.median(r.posts_per_second for r in mine) / statistics.median(r.posts_per_second for r in theirs)
     rows = [
@@ -171,11 +172,10 @@ def markdown(runs: list[Run], against: str, command: str) -> str:
         "",
         f"| | {against} | this tree |",
         "|---|--:|--:|",
-        f"| posts/s | {listed(theirs, 'posts_per_second')} | {listed(mine, 'posts_per_second')} |",
-        f"| API process CPU ms / post | {listed(theirs, 'api_cpu_ms')} | {listed(mine, 'api_cpu_ms')} |",
-        f"| its children's (the views' process) | {listed(theirs, 'children_cpu_ms')} | "
-        f"{listed(mine, 'children_cpu_ms')} |",
-        f"| the clients' | {listed(theirs, 'clients_cpu_ms')} | {listed(mine, 'clients_cpu_ms')} |",
+        f"| posts/s | {rates(theirs)} | {rates(mine)} |",
+        f"| API process CPU ms / post | {cpu(theirs, 'api_cpu_ms')} | {cpu(mine, 'api_cpu_ms')} |",
+        f"| its children's (the views' process) | {cpu(theirs, 'children_cpu_ms')} | {cpu(mine, 'children_cpu_ms')} |",
+        f"| the clients' | {cpu(theirs, 'clients_cpu_ms')} | {cpu(mine, 'clients_cpu_ms')} |",
         f"| posts/s, this tree ÷ {against} (medians) | | {ratio:.2f} |",
     ]
     return "\n".join(rows)
