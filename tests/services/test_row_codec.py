@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from segb_server.backend.services.upkeep.database import ViewDatabase
+from segb_server.backend.services.upkeep.kept_queries import row_codec
 from segb_server.backend.services.upkeep.kept_queries.row_codec import SAMPLE_ROWS, RowCodec, schema
 
 TABLE = "report_example"
@@ -119,5 +120,21 @@ def test_rows_read_in_a_snapshot_are_decoded_with_their_own_versions_dictionary(
         # outside a snapshot, the old version's dictionary is gone
         with pytest.raises(LookupError):
             RowCodec().decode(database.reader(), stored[-1])
+    finally:
+        database.close()
+
+
+def test_rows_compressed_at_zlibs_default_memory_level_read_back(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Earlier versions compressed at zlib's default memory level (8): a data directory they wrote reads alike."""
+    database = ViewDatabase(tmp_path / "view.sqlite3", [*schema(), CREATE])
+    try:
+        monkeypatch.setattr(row_codec, "MEMORY_LEVEL", 8)
+        write(database, RowCodec(), 0, range(SAMPLE_ROWS + 50))
+        monkeypatch.undo()
+        stored = [value for (value,) in database.reader().execute(f"SELECT row FROM {TABLE}")]
+        assert all(isinstance(value, bytes) for value in stored)  # enough rows for a dictionary in one write
+        assert read(database, RowCodec()) == [row(0, index) for index in range(SAMPLE_ROWS + 50)]
     finally:
         database.close()

@@ -33,6 +33,11 @@ SAMPLE_BYTES = 32_768  # zlib's window: a longer dictionary's start is never rea
 REMEMBERED = 64  # dictionaries a reader keeps at hand (each at most SAMPLE_BYTES, with its decoder's state)
 LEVEL = 9  # a row is a few hundred bytes: the best compression costs tens of microseconds
 WINDOW_BITS = -15  # raw deflate: no zlib header and checksum (6 bytes of a 40-byte row)
+# zlib's memory level for the compressor (1-9; 8 is its default). Each row compresses on a copy of the primed
+# compressor, whose buffers this level sizes. Measured on one robot's rows: the same bytes out at 5 as at 8, about
+# 10% less time in a soak's flow, and 20 µs a row instead of 120 with one conversations table's dictionary.
+# Decoding does not depend on it: rows written at any level read alike.
+MEMORY_LEVEL = 5
 
 
 def schema() -> list[str]:
@@ -84,7 +89,7 @@ class RowCodec:
             cursor = connection.execute(f"INSERT INTO {DICTIONARIES} (tab, sample) VALUES (?, ?)", (table, sample))
             found = (cursor.lastrowid, sample)
         number, sample = int(found[0]), bytes(found[1])
-        compressor = (number, zlib.compressobj(LEVEL, zlib.DEFLATED, WINDOW_BITS, zdict=sample))
+        compressor = (number, zlib.compressobj(LEVEL, zlib.DEFLATED, WINDOW_BITS, MEMORY_LEVEL, zdict=sample))
         self._compressors[table] = compressor
         return compressor
 
