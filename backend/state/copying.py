@@ -9,7 +9,7 @@ from collections.abc import Callable, Sequence
 from segb_server.backend.state.database import Database
 
 JOURNAL_TABLES = ("receipts", "journal_triples", "journal_state", "erased_triples", "erasure_pending")
-CONTEXT_TABLES = ("contexts", "observations", "aliases", "cases", "rejected_pairs")
+CONTEXT_TABLES = ("contexts", "observations", "aliases", "cases", "rejected_pairs", "withheld_observations")
 ROWS_PER_INSERT = 200
 
 
@@ -20,8 +20,8 @@ class TargetNotEmpty(Exception):
 def copy_tables(
     source: Database, target: Database, tables: Sequence[str], progress: Callable[[int], None] = lambda _rows: None
 ) -> dict[str, int]:
-    """Copy `tables` (present in both, empty in the target) in one transaction of the target's writers; returns
-    the rows copied per table. `progress` hears of every batch."""
+    """Copy `tables` (present in the target and empty there; one the source lacks copies nothing) in one
+    transaction of the target's writers; returns the rows copied per table. `progress` hears of every batch."""
     copied: dict[str, int] = {}
     with target.writing():
         for table in tables:
@@ -35,6 +35,8 @@ def copy_tables(
 
 def _copy_table(source: Database, target: Database, table: str, progress: Callable[[int], None]) -> int:
     columns = sorted(source.columns(table))
+    if not columns:  # a table the version that wrote the source did not have yet: nothing to copy
+        return 0
     names = ", ".join(f'"{column}"' for column in columns)  # quoted: `user` is a reserved word in PostgreSQL
     row_marks = f"({', '.join('?' for _ in columns)})"
     count = 0

@@ -37,6 +37,7 @@ class Erased:
     before: dict[tuple[str, str], list[dict]]  # (report, human) → rows, for the people who stay
     answer: dict
     republished: list[dict]
+    resolved_again: list[dict]
 
     @property
     def ines(self) -> str:
@@ -66,19 +67,16 @@ def erased(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Erased]:
         visit.publish_steps(server.url)
         # A robot resolving a shared context through the server (what HTTPSharedContextResolver calls): the
         # server's own state then quotes her.
-        resolved = httpx.post(
-            f"{server.url}/shared-context/resolve",
-            json={"event_kind": "human_utterance", "observed_at": "2026-03-10T09:00:05Z", "subject_uri":
-                  str(visit.iris["ines"]), "modality": "speech", "text": INES_SAYS[0]},
-        )  # fmt: skip
-        assert resolved.status_code == 200, resolved.text
-        # And one that overheard her without knowing who spoke: the context it makes quotes her, naming no one.
-        overheard = httpx.post(
-            f"{server.url}/shared-context/resolve",
-            json={"event_kind": "human_utterance", "observed_at": "2026-03-10T09:00:21Z", "modality": "speech",
-                  "text": INES_SAYS[1]},
-        )  # fmt: skip
-        assert overheard.status_code == 200, overheard.text
+        observations = [
+            {"event_kind": "human_utterance", "observed_at": "2026-03-10T09:00:05Z", "subject_uri":
+             str(visit.iris["ines"]), "modality": "speech", "text": INES_SAYS[0]},
+            # And one that overheard her without knowing who spoke: the context it makes quotes her, naming no one.
+            {"event_kind": "human_utterance", "observed_at": "2026-03-10T09:00:21Z", "modality": "speech",
+             "text": INES_SAYS[1]},
+        ]  # fmt: skip
+        for observation in observations:
+            resolved = httpx.post(f"{server.url}/shared-context/resolve", json=observation)
+            assert resolved.status_code == 200, resolved.text
         # An auditor's SPARQL query takes a copy of the store (users' queries run on copies).
         assert INES_NAME in httpx.post(f"{server.url}/sparql", data={"query": "SELECT * { ?s ?p ?o }"}).text
         before = human_rows(server.url, visit)
@@ -91,7 +89,11 @@ def erased(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Erased]:
         settle(server.url)
         republished = visit.publish(server.url)  # her robots still hold everything and send it all again
         settle(server.url)
-        yield Erased(server.url, data_dir, visit, before, answer.json(), republished)
+        # Their resolvers, run again over the same log, send the same observations again.
+        resolved_again = [
+            httpx.post(f"{server.url}/shared-context/resolve", json=observation).json() for observation in observations
+        ]
+        yield Erased(server.url, data_dir, visit, before, answer.json(), republished, resolved_again)
 
 
 def texts_served(url: str, ines: str, visit: Visit) -> Iterator[tuple[str, str]]:
@@ -176,6 +178,35 @@ def test_a_cumulative_republish_does_not_bring_her_back(erased: Erased) -> None:
     assert all(answer["triples_new"] == 0 for answer in erased.republished)
     participants = httpx.get(f"{erased.url}/reports/participants").json()["rows"]
     assert {row["humanName"] for row in participants} == {"Juan", "Carla"}
+
+
+def test_her_observations_sent_again_to_the_resolver_are_not_recorded(erased: Erased) -> None:
+    assert [answer["withheld"] for answer in erased.resolved_again] == [True, True]
+    assert all(answer["shared_context_uri"] and answer["candidate_count"] == 0 for answer in erased.resolved_again)
+    stats = httpx.get(f"{erased.url}/shared-context/stats").json()
+    assert stats["active_contexts"] + stats["ambiguous_contexts"] == 0, stats  # hers were the only ones
+
+
+def test_an_observation_of_an_erased_person_is_withheld_only_when_it_is_one_erased(memory_api: InProcess) -> None:
+    """As for triples: what an erasure removed is held back when sent again; what she says later is new data."""
+    zoe = "https://example.org/h/zoe"
+    posted = memory_api.client.post(
+        "/ttl", content=f"<{zoe}> a <http://xmlns.com/foaf/0.1/Person> .", headers={"content-type": "text/turtle"}
+    )
+    assert posted.status_code == 201, posted.text
+    said = {"event_kind": "human_utterance", "observed_at": "2026-03-10T09:00:05Z", "subject_uri": zoe,
+            "modality": "speech", "text": "I live on Elm Street."}  # fmt: skip
+    resolve = lambda body: memory_api.client.post("/shared-context/resolve", json=body).json()  # noqa: E731
+    first = resolve(said)
+    assert first["withheld"] is False
+    erased = memory_api.client.post("/humans/erase", json={"iri": zoe, "reason": "request 7"})
+    assert erased.status_code == 200, erased.text
+    again = resolve(said)
+    assert (again["withheld"], again["shared_context_uri"]) == (True, first["shared_context_uri"])
+    later = resolve({**said, "observed_at": "2026-04-01T10:00:00Z", "text": "Good morning."})
+    assert later["withheld"] is False
+    stats = memory_api.client.get("/shared-context/stats").json()
+    assert stats["active_contexts"] + stats["ambiguous_contexts"] == 1, stats  # the later one alone
 
 
 def test_the_robots_reply_stays_without_its_link_to_her(erased: Erased) -> None:

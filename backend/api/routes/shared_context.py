@@ -73,6 +73,11 @@ class ResolveResponse(Versioned):
     close_candidates: list[str] = Field(description="For `ambiguous`: the best two candidates.")
     score_breakdown: dict[str, float] = Field(description="The best candidate's time/subject/modality/text terms.")
     candidate_count: int
+    withheld: bool = Field(
+        False,
+        description="The observation was removed by a person's erasure and is sent again: it is not recorded, and "
+        "the URI is the one it would make on its own (see docs/personal-data.md).",
+    )
 
 
 class ObservationOut(BaseModel):

@@ -8,6 +8,7 @@ robots resolving the same event at once get one context.
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, field
 
 from segb_server.backend.services.clock import utc_iso
@@ -20,8 +21,16 @@ from segb_server.backend.services.shared_context.policy import (
     slug,
 )
 from segb_server.backend.services.shared_context.scoring import Score, decisive, may_match, ranked, score
-from segb_server.backend.services.shared_context.state import Case, Context, ContextState, ObservationRow
+from segb_server.backend.services.shared_context.state import (
+    Case,
+    Context,
+    ContextState,
+    ObservationRow,
+    observation_digest,
+)
 from segb_server.backend.state.database import Database
+
+logger = logging.getLogger("segb.shared_context")
 
 
 @dataclass(frozen=True)
@@ -49,6 +58,7 @@ class Resolution:
     close_candidates: list[str]
     score_breakdown: dict[str, float]
     candidate_count: int
+    withheld: bool = False  # an observation a person's erasure removed, sent again: not recorded
 
 
 @dataclass(frozen=True)
@@ -97,6 +107,8 @@ class SharedContextService:
         window = observation.window or self.policy.time_window_seconds
         span = 2 * window
         with self.state.transaction() as state:
+            if state.withheld(_digest_of(observation)):
+                return self._withheld(state, observation)
             nearby = state.unmerged_near(
                 observation.event_kind, observation.observed_at - span, observation.observed_at + span
             )
@@ -140,7 +152,15 @@ class SharedContextService:
         state.save_context(context)
         return uri
 
-    def _create(self, state: ContextState, observation: Observation, status: str) -> str:
+    def _withheld(self, state: ContextState, observation: Observation) -> Resolution:
+        """Nothing recorded; the answer names the context this observation would make on its own (the URI it
+        made before the erasure when it was the first of its context), so what the robot logs under it is the
+        same again, and held back by the journal if it was erased too."""
+        logger.warning("a shared-context observation removed by an erasure was sent again; it was not recorded")
+        return Resolution(self._new_uri(state, observation), "created", 0.0, None, [], {}, 0, withheld=True)
+
+    def _new_uri(self, state: ContextState, observation: Observation) -> str:
+        """The first URI made from the observation that no context holds yet."""
         namespace = self.policy.namespace.rstrip("/")
         attempt = 0
         while True:
@@ -154,8 +174,11 @@ class SharedContextService:
             )
             uri = f"{namespace}/{slug(observation.event_kind)}_{basis[:16]}"
             if not state.uri_taken(uri):
-                break
+                return uri
             attempt += 1
+
+    def _create(self, state: ContextState, observation: Observation, status: str) -> str:
+        uri = self._new_uri(state, observation)
         now = utc_iso()
         state.add_context(
             Context(
@@ -328,6 +351,13 @@ class SharedContextService:
 
     def _record(self, state: ContextState, context: Context) -> ContextRecord:
         return ContextRecord(context, state.observations(context.uri))
+
+
+def _digest_of(observation: Observation) -> str:
+    return observation_digest(
+        observation.observed_at, observation.subject, observation.modality, observation.text,
+        observation.observation_uri, observation.robot_uri,
+    )  # fmt: skip
 
 
 def _observation_row(uri: str, observation: Observation) -> ObservationRow:

@@ -3,6 +3,7 @@ time across every process sharing it."""
 
 from __future__ import annotations
 
+import hashlib
 import json
 import re
 from collections.abc import Iterator
@@ -56,7 +57,11 @@ CREATE TABLE IF NOT EXISTS rejected_pairs (
     candidate TEXT NOT NULL,
     PRIMARY KEY (source, candidate)
 );
+CREATE TABLE IF NOT EXISTS withheld_observations (digest TEXT PRIMARY KEY);
 """
+# withheld_observations: the digests (`observation_digest`) of the observations a person's erasure removed. A
+# robot's resolver sends them again when it runs over its log again; they are then not recorded, as the journal
+# holds back erased triples (docs/personal-data.md). Digests only: nothing of the person can be read back.
 
 
 @dataclass
@@ -104,6 +109,19 @@ class Case:
 CONTEXT_COLUMNS = ", ".join(field.name for field in fields(Context))
 OBSERVATION_COLUMNS = ", ".join(field.name for field in fields(ObservationRow))
 CASE_COLUMNS = ", ".join(field.name for field in fields(Case))
+
+
+def observation_digest(
+    observed_at: float,
+    subject: str | None,
+    modality: str | None,
+    text: str | None,
+    observation_uri: str | None,
+    robot_uri: str | None,
+) -> str:
+    """What makes an observation sent again the same one (who sent it aside): a SHA-256 of its fields."""
+    fields = [repr(float(observed_at)), subject, modality, text, observation_uri, robot_uri]
+    return hashlib.sha256(json.dumps(fields).encode("utf-8")).hexdigest()
 
 
 def _placeholders(count: int) -> str:
@@ -273,6 +291,7 @@ class ContextState:
         removed = 0
         for chunk in _chunks(sorted(iris)):
             marks = ", ".join(["?"] * len(chunk))
+            self._withhold(_OBSERVATIONS_NAMING.format(marks), chunk * 3)
             for sql in _FORGET_BY_IRI:
                 statement = sql.format(marks)
                 removed += self._db.execute(statement, chunk * statement.count("(" + marks)).rowcount or 0
@@ -284,10 +303,26 @@ class ContextState:
         ]
         for case_id in naming:
             removed += self._db.execute("DELETE FROM cases WHERE case_id = ?", (case_id,)).rowcount or 0
+        for chunk in _chunks(sorted(texts)):
+            self._withhold(_OBSERVATIONS_QUOTING.format(", ".join(["?"] * len(chunk))), chunk)
         for sql, quoted in ((_FORGET_OBSERVATIONS_BY_TEXT, texts), (_FORGET_CONTEXTS_BY_TEXT, compared_texts)):
             for chunk in _chunks(sorted(quoted)):
                 removed += self._db.execute(sql.format(", ".join(["?"] * len(chunk))), chunk).rowcount or 0
         return removed
+
+    def _withhold(self, selecting: str, values: list[str]) -> None:
+        """Keep the digests of the observations `selecting` finds (before they are removed)."""
+        for row in self._db.execute(selecting, values).fetchall():
+            self._db.execute(
+                "INSERT INTO withheld_observations (digest) VALUES (?) ON CONFLICT DO NOTHING",
+                (observation_digest(*row),),
+            )
+
+    def withheld(self, digest: str) -> bool:
+        """Whether an erasure removed the observation of this digest (`observation_digest`)."""
+        return (
+            self._db.execute("SELECT 1 FROM withheld_observations WHERE digest = ?", (digest,)).fetchone() is not None
+        )
 
     def forget_before(self, cutoff: str) -> int:
         """Remove observations recorded before `cutoff` (ISO 8601 UTC), and contexts left with none."""
@@ -314,6 +349,12 @@ _FORGET_BY_IRI = (  # `{}`: the chunk's placeholders
     "DELETE FROM cases WHERE source_uri IN ({0}) OR selected_uri IN ({0})",
     "DELETE FROM rejected_pairs WHERE source IN ({0}) OR candidate IN ({0})",
 )
+_DIGESTED = "observed_at, subject, modality, text, observation_uri, robot_uri"  # `observation_digest`'s fields
+_OBSERVATIONS_NAMING = (
+    f"SELECT {_DIGESTED} FROM observations WHERE subject IN ({{0}}) OR context_uri IN ({{0}}) "
+    "OR observation_uri IN ({0})"
+)
+_OBSERVATIONS_QUOTING = f"SELECT {_DIGESTED} FROM observations WHERE text IN ({{}})"
 _FORGET_OBSERVATIONS_BY_TEXT = "DELETE FROM observations WHERE text IN ({})"  # as robots sent it
 _FORGET_CONTEXTS_BY_TEXT = "DELETE FROM contexts WHERE canonical_text IN ({})"  # as scoring compares it
 _QUOTED = re.compile(r'"([^"]+)"')  # every string of a case's candidates (JSON)
