@@ -13,6 +13,7 @@ from fastapi.responses import Response, StreamingResponse
 from segb_server.backend.api.deps import Auditor, ServicesDep
 from segb_server.backend.api.responses import FastJSONResponse
 from segb_server.backend.api.routes.live import ENDS_WITH_THE_TOKEN, event_stream
+from segb_server.backend.services.csv_cells import spreadsheet_safe
 from segb_server.backend.services.errors import InvalidParameter
 from segb_server.backend.services.formats import TABLES, negotiate
 from segb_server.backend.services.rules.service import DEFAULT_LIMIT, FILTERS, MAX_LIMIT, FindingsPage
@@ -179,8 +180,11 @@ def _csv(page: FindingsPage) -> str:
         values = found.get("values") or {}
         writer.writerow(
             [
-                *("" if found.get(column) is None else str(found.get(column)) for column in CSV_COLUMNS[:-1]),
-                json.dumps(values, sort_keys=True) if values else "",
+                *(
+                    "" if found.get(column) is None else spreadsheet_safe(str(found.get(column)))
+                    for column in CSV_COLUMNS[:-1]
+                ),
+                json.dumps(values, sort_keys=True) if values else "",  # starts with "{": never a formula
             ]
         )
     return buffer.getvalue()

@@ -20,6 +20,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime
 
+from segb_server.backend.services.csv_cells import spreadsheet_safe
 from segb_server.backend.services.errors import Conflict, InvalidParameter
 from segb_server.backend.services.sparql.catalog import Parameter, to_term
 from segb_server.backend.services.timeline.events import COLUMNS, TimelineEvent
@@ -77,8 +78,8 @@ def _cell(value: object) -> str:
     if value is None:
         return ""
     if isinstance(value, list):
-        return " ".join(str(item) for item in value)
-    return str(value)
+        return spreadsheet_safe(" ".join(str(item) for item in value))
+    return spreadsheet_safe(str(value))
 
 
 class TimelineService:
