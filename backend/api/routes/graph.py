@@ -11,7 +11,7 @@ from fastapi.concurrency import run_in_threadpool
 from segb_server.backend.api.deps import Auditor, ServicesDep
 from segb_server.backend.api.responses import FastJSONResponse
 from segb_server.backend.services.graph.service import MAX_NODES, GraphRequest, parse_types
-from segb_server.backend.services.sparql.catalog import Parameter, to_term
+from segb_server.backend.services.sparql.catalog import Parameter, check_window, to_term
 from segb_server.backend.services.values import iso_time
 
 router = APIRouter(tags=["graph"])
@@ -67,6 +67,7 @@ async def graph(
         depth=depth,
         q=q.strip() if q and q.strip() else None,
     )
+    check_window(since, until)  # after `_time` said each is a time
     # A FastJSONResponse skips FastAPI's per-value encoding pass, which costs more than the query on big graphs;
     # made in the worker thread, so encoding a view of a megabyte does not hold the event loop either.
     return await run_in_threadpool(lambda: FastJSONResponse(services.graph.graph(request)))

@@ -23,7 +23,7 @@ from segb_server.backend.services.rules.catalog import FOLDER, SEVERITIES, Rule,
 from segb_server.backend.services.rules.findings import Finding, finding, order_key
 from segb_server.backend.services.rules.shape_view import ShapeFindings, check_shapes
 from segb_server.backend.services.rules.shapes import ShapeRule
-from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, Parameter, to_term
+from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, Parameter, check_window, to_term
 from segb_server.backend.services.upkeep.kept_queries.encoding import instant, numeric_value
 from segb_server.backend.services.upkeep.kept_queries.projection import KeptQueries
 from segb_server.backend.services.upkeep.signal import ChangeSignal
@@ -99,6 +99,7 @@ class FindingsService:
             if given:
                 to_term(Parameter(name, _FILTER_TYPES[name]), given[0])  # type: ignore[arg-type]  # 422 when bad
                 filters[name] = given[0]
+        check_window(filters.get("since"), filters.get("until"))
         rules = [rule for rule in self.catalog
                  if (not wanted or rule.id in wanted) and (not severities or rule.severity in severities)]  # fmt: skip
         return Selection(rules, filters)

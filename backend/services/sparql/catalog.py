@@ -76,7 +76,19 @@ class CatalogQuery:
             if raw is None or raw == "":
                 raw = parameter.default
             bound[PARAMETER_VARIABLE_PREFIX + name] = None if raw is None else to_term(parameter, raw)
+        if "since" in self.parameters and "until" in self.parameters:
+            check_window(values.get("since"), values.get("until"))
         return bound
+
+
+def check_window(since: str | None, until: str | None) -> None:
+    """A time window may not end before it starts: 422 naming `until` (both already valid, see `to_term`)."""
+    if since and until and _moment(until) < _moment(since):
+        raise InvalidParameter("until", "is before `since`")
+
+
+def _moment(raw: str) -> datetime:
+    return datetime.fromisoformat(raw.replace("Z", "+00:00"))
 
 
 class _BadValue(ValueError):
@@ -92,7 +104,7 @@ def to_term(parameter: Parameter, raw: str) -> Term:
                 raise _BadValue("must be an absolute IRI (http://, https:// or urn:)")
             return NamedNode(raw)
         if kind == "dateTime":
-            moment = datetime.fromisoformat(raw.replace("Z", "+00:00"))
+            moment = _moment(raw)
             if moment.tzinfo is None:
                 raise _BadValue("needs a time of day and a time zone, e.g. 2026-03-10T09:00:00Z")
             return Literal(moment.isoformat(), datatype=NamedNode(XSD + "dateTime"))

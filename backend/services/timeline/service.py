@@ -18,11 +18,10 @@ import io
 import json
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from datetime import datetime
 
 from segb_server.backend.services.csv_cells import spreadsheet_safe
 from segb_server.backend.services.errors import Conflict, InvalidParameter
-from segb_server.backend.services.sparql.catalog import Parameter, to_term
+from segb_server.backend.services.sparql.catalog import Parameter, check_window, to_term
 from segb_server.backend.services.timeline.events import COLUMNS, TimelineEvent
 from segb_server.backend.services.timeline.kept_reader import Moved, Position
 from segb_server.backend.services.timeline.kinds import KINDS
@@ -100,8 +99,7 @@ class TimelineService:
             raw = getattr(window, name)
             if raw is not None:
                 to_term(Parameter(name, kind), raw)  # type: ignore[arg-type]  # 422 naming a bad value
-        if window.since and window.until and _instant(window.until) < _instant(window.since):
-            raise InvalidParameter("until", "is before `since`")
+        check_window(window.since, window.until)
         return window
 
     def chosen_kinds(self, asked: Sequence[str]) -> list[str]:
@@ -194,10 +192,6 @@ class TimelineService:
             served_from={kind: reader.served_from for kind, reader in readers.items()},
             last_event_id=last_event_id,
         )
-
-
-def _instant(text: str) -> datetime:
-    return datetime.fromisoformat(text.replace("Z", "+00:00"))  # checked by `to_term` already
 
 
 def _fingerprint(window: Window, kinds: list[str]) -> str:
