@@ -67,9 +67,10 @@ def _iri(curie: str) -> str:
     return PREFIXES[prefix] + local
 
 
+PERSON_CLASSES = frozenset({_iri("oro:Human"), _iri("foaf:Person"), _iri("prov:Person")})
 _CLASSES: list[tuple[Kind, frozenset[str]]] = [
     ("robot", frozenset({_iri("oro:Robot")})),
-    ("human", frozenset({_iri("oro:Human"), _iri("foaf:Person"), _iri("prov:Person")})),
+    ("human", PERSON_CLASSES),
     ("message", frozenset({_iri("schema:Message")})),
     ("emotion", frozenset({_iri("onyx:Emotion"), _iri("amor:EmotionAnnotation"), _iri("oa:Annotation")})),
     ("model", frozenset({_iri("mls:Model")})),

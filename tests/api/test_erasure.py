@@ -225,6 +225,28 @@ def test_erasing_asks_for_an_absolute_iri_and_a_reason_and_finds_someone(memory_
     assert memory_api.client.get("/ledger").json()["total"] == 0  # nothing was recorded
 
 
+def test_a_robot_or_a_message_is_not_erased_or_exported_as_a_person(memory_api: InProcess) -> None:
+    robot, said, someone = "https://example.org/r/ari", "https://example.org/m/1", "https://example.org/h/zoe"
+    turtle = f"""
+        <{robot}> a <http://kb.openrobots.org#Robot> .
+        <{said}> a <http://schema.org/Message> ; <http://schema.org/sender> <{someone}> .
+    """
+    posted = memory_api.client.post("/ttl", content=turtle, headers={"content-type": "text/turtle"})
+    assert posted.status_code == 201, posted.text
+    for iri in (robot, said):
+        erased = memory_api.client.post("/humans/erase", json={"iri": iri, "reason": "a mistake"})
+        assert (erased.status_code, erased.json()["error"]) == (422, "invalid_parameter"), erased.text
+        assert "is not a person" in erased.json()["detail"] and iri in erased.json()["detail"]
+        exported = memory_api.client.get(f"/humans/{quote(iri, safe='')}/export", params={"format": "turtle"})
+        assert exported.status_code == 422, exported.text
+    assert len(memory_api.client.get("/ledger").json()["receipts"]) == 1  # the post alone: nothing was erased
+    # Someone a robot names without typing them is a person as far as anyone can tell: exported and erased.
+    exported = memory_api.client.get(f"/humans/{quote(someone, safe='')}/export", params={"format": "turtle"})
+    assert exported.status_code == 200 and said in exported.text
+    erased = memory_api.client.post("/humans/erase", json={"iri": someone, "reason": "request 8"})
+    assert erased.status_code == 200, erased.text
+
+
 @pytest.mark.virtuoso
 def test_an_erasure_on_virtuoso_removes_her_triples_in_their_received_spelling(
     virtuoso: VirtuosoProcess, tmp_path: Path

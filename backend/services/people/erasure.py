@@ -31,6 +31,7 @@ from segb_server.backend.services.writing.erasure import (
 from segb_server.backend.services.writing.receipts import Receipt
 from segb_server.backend.services.writing.write_path import WritePath
 from segb_server.backend.store.base import Store, StoreUnavailable, select
+from segb_server.backend.vocabulary import PERSON_CLASSES
 
 logger = logging.getLogger("segb.people")
 
@@ -46,6 +47,7 @@ FIND_ATTEMPTS = 5
 HELD_APPLY_TIMEOUT_SECONDS = 30.0
 MAX_REASON = 500
 SHORTEST_TERM = 3  # words shorter than this are too common to look for in the server log
+_TYPES = "SELECT ?type WHERE { ?resource a ?type }"
 
 
 @dataclass(frozen=True)
@@ -104,9 +106,20 @@ class ErasureService:
         rows = select(self.store, self.rule.text, bound).rows
         return sorted({row["resource"].value for row in rows if isinstance(row.get("resource"), NamedNode)})
 
+    def check_person(self, human: str) -> None:
+        """422 when the log types `human` and as something else than a person (a robot, a model, a message): an
+        erasure cannot be undone, and an export would tell a robot's log as someone's life. An IRI the log does not
+        type passes: a robot may name someone (a message's sender) without typing them."""
+        rows = select(self.store, _TYPES, {"resource": NamedNode(human)}).rows
+        types = {row["type"].value for row in rows if isinstance(row.get("type"), NamedNode)}
+        if types and types.isdisjoint(PERSON_CLASSES):
+            named = ", ".join(f"<{iri}>" for iri in sorted(types)[:3])
+            raise InvalidParameter("iri", f"is not a person: the log types <{human}> as {named}")
+
     def erase_human(self, human: str, reason: str, actor: str) -> ErasureResult:
         """Erase `human` everywhere; 404 when neither the store nor the journal holds anything about them."""
         reason = _checked_reason(reason)
+        self.check_person(human)
         with self._one_at_a_time:
             clock = _Clock()
             found, done = self._found_and_journaled(human, reason, actor, clock)

@@ -38,7 +38,9 @@ class PersonExport:
         self.story_query = story
 
     def export(self, human: str) -> PersonData:
-        """Everything held about `human` (blocking); 404 when the store holds nothing about them."""
+        """Everything held about `human` (blocking); 404 when the store holds nothing about them, 422 when the log
+        says it is not a person."""
+        self.erasure.check_person(human)
         triples = sorted(set(self._triples(self.erasure.resources(human))), key=str)
         if not triples:
             raise NotFound(f"The store holds nothing about <{human}>.")
