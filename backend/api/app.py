@@ -13,7 +13,7 @@ from fastapi.middleware.cors import CORSMiddleware
 from segb_server.backend import __version__
 from segb_server.backend.api.docs import install_docs
 from segb_server.backend.api.errors import document_error_shape, install_error_handlers
-from segb_server.backend.api.middleware import SecurityHeaders, UnexpectedErrors
+from segb_server.backend.api.middleware import HeadAsGet, SecurityHeaders, UnexpectedErrors
 from segb_server.backend.api.request_context import RequestContext
 from segb_server.backend.api.routes import (
     auth,
@@ -159,6 +159,7 @@ def create_app(
             allow_headers=["Authorization", "Content-Type", "Content-Encoding", "X-Request-ID"],
             expose_headers=["X-Request-ID", "X-SEGB-Truncated", "X-SEGB-Max-Rows", "Retry-After"],
         )
+    app.add_middleware(HeadAsGet)  # inside the request id's: the log says HEAD
     app.add_middleware(SecurityHeaders)
     app.add_middleware(RequestContext)  # outermost: every answer carries the id
     for router in [*ROUTERS, live.router, timeline.router, reports.build_router(catalog)]:

@@ -74,3 +74,33 @@ class SecurityHeaders:
             await send(message)
 
         await self.app(scope, receive, with_headers)
+
+
+class HeadAsGet:
+    """Answers HEAD wherever GET is answered (`curl -I /healthz/ready`, uptime monitors): the request goes to the
+    GET route, and only the answer's status and headers are sent. Once they are, the route is told the client
+    has gone, so a stream (`/reports/stream`) ends instead of producing a body nobody reads."""
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http" or scope["method"] != "HEAD":
+            await self.app(scope, receive, send)
+            return
+        answered = False
+
+        async def until_answered() -> Message:
+            if answered:
+                return {"type": "http.disconnect"}
+            return await receive()
+
+        async def headers_only(message: Message) -> None:
+            nonlocal answered
+            if message["type"] == "http.response.start":
+                await send(message)
+                await send({"type": "http.response.body", "body": b"", "more_body": False})
+                answered = True
+            # The body's messages are dropped: the answer is complete already.
+
+        await self.app({**scope, "method": "GET"}, until_answered, headers_only)
