@@ -71,9 +71,11 @@ def principal_from_header(authorization: str | None, secret: str) -> Principal:
     """Check `Authorization: Bearer <jwt>` against `secret`; raise AuthenticationFailed naming the problem."""
     if not secret:
         return ANONYMOUS
-    scheme, _, token = (authorization or "").partition(" ")
-    if scheme.lower() != "bearer" or not token.strip():
+    if not (authorization or "").strip():
         raise AuthenticationFailed("Authorization header is required")
+    scheme, _, token = authorization.strip().partition(" ")  # type: ignore[union-attr]
+    if scheme.lower() != "bearer" or not token.strip():
+        raise AuthenticationFailed("Authorization header must be 'Bearer <token>' (a token from `segb token`)")
     return decode_token(token.strip(), secret)
 
 

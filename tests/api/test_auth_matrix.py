@@ -160,6 +160,13 @@ def test_protected_routes_refuse_callers_without_a_valid_token(server: InProcess
         assert answer.json()["status"] == 401
 
 
+def test_an_authorization_of_another_scheme_is_told_a_bearer_token_is_expected(server: InProcess) -> None:
+    missing = server.client.get("/reports")
+    assert missing.json()["detail"] == "Authorization header is required"  # the reference's words
+    basic = server.client.get("/reports", headers={"Authorization": "Basic YWRtaW46YWRtaW4="})
+    assert basic.status_code == 401 and "Bearer <token>" in basic.json()["detail"]
+
+
 @pytest.mark.parametrize("route", sorted(REQUIRED_ROLE), ids=lambda r: f"{r[0]} {r[1]}")
 @pytest.mark.parametrize("role", ["logger", "auditor", "admin"])
 def test_each_role_gets_exactly_its_routes(server: InProcess, route, role: str) -> None:  # type: ignore[no-untyped-def]

@@ -208,6 +208,10 @@ def test_robots_resolving_the_same_event_at_once_get_one_context(on_disk: InProc
         ({"observed_at": "yesterday"}, "observed_at"),
         ({"text": "x" * 5000}, "text"),
         ({"time_window_seconds": -1}, "time_window_seconds"),
+        ({"time_window_seconds": "nan"}, "finite number"),
+        ({"subject_uri": "not an iri <script>"}, "subject_uri"),
+        ({"robot_uri": "javascript:alert(13)"}, "robot_uri"),
+        ({"observation_uri": "https://example.org/a b"}, "observation_uri"),
     ],
 )
 def test_bad_requests_are_refused_naming_the_field(memory_api: InProcess, change: dict[str, Any], named: str) -> None:

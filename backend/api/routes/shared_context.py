@@ -21,6 +21,7 @@ from segb_server.backend.services.errors import Conflict, InvalidParameter, NotF
 from segb_server.backend.services.shared_context.policy import RESOLVER_VERSION, atom, epoch, scoring_text
 from segb_server.backend.services.shared_context.service import ContextRecord, Decision, Observation
 from segb_server.backend.services.shared_context.state import Case
+from segb_server.backend.services.sparql.catalog import is_absolute_iri
 from segb_server.backend.services.text import UnicodeModel
 
 router = APIRouter(prefix="/shared-context", tags=["shared context"])
@@ -37,13 +38,23 @@ class ResolveRequest(UnicodeModel):
     text: str | None = Field(None, max_length=MAX_TEXT, examples=["Hello robot"])
     observation_uri: str | None = Field(None, max_length=MAX_ATOM)
     robot_uri: str | None = Field(None, max_length=MAX_ATOM)
-    time_window_seconds: float | None = Field(None, ge=0, le=86400, description="0 or absent = the server's.")
+    time_window_seconds: float | None = Field(
+        None, ge=0, le=86400, allow_inf_nan=False, description="0 or absent = the server's."
+    )
 
     @field_validator("event_kind")
     @classmethod
     def _not_blank(cls, value: str) -> str:
         if not value.strip():
             raise ValueError("must be a non-empty string")
+        return value
+
+    @field_validator("subject_uri", "observation_uri", "robot_uri")
+    @classmethod
+    def _absolute_iri(cls, value: str | None) -> str | None:
+        # They name resources of the log (and come back in answers and pages): an IRI as the log's, or nothing.
+        if value is not None and value.strip() and not is_absolute_iri(value.strip()):
+            raise ValueError("must be an absolute IRI (http://, https:// or urn:)")
         return value
 
     def observation(self, reported_by: str) -> Observation:

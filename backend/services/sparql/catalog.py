@@ -81,6 +81,18 @@ class CatalogQuery:
         return bound
 
 
+IRI_SCHEMES = ("http://", "https://", "urn:")  # what a parameter naming a resource of the log may start with
+
+
+def is_absolute_iri(text: str) -> bool:
+    """Whether `text` is an IRI a parameter may name (`to_term`'s rule, for validators that cannot raise its 422)."""
+    try:
+        to_term(Parameter("iri", "iri"), text)
+    except InvalidParameter:
+        return False
+    return True
+
+
 def check_window(since: str | None, until: str | None) -> None:
     """A time window may not end before it starts: 422 naming `until` (both already valid, see `to_term`)."""
     if since and until and _moment(until) < _moment(since):
@@ -100,7 +112,7 @@ def to_term(parameter: Parameter, raw: str) -> Term:
     kind = parameter.type
     try:
         if kind == "iri":
-            if not raw.startswith(("http://", "https://", "urn:")):
+            if not raw.startswith(IRI_SCHEMES):
                 raise _BadValue("must be an absolute IRI (http://, https:// or urn:)")
             return NamedNode(raw)
         if kind == "dateTime":
