@@ -53,6 +53,10 @@ def configure_logging(settings: Settings) -> None:
     logging.basicConfig(level=settings.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     # httpx logs every request at INFO; the store monitor and the UI make many, and the API logs its own.
     logging.getLogger("httpx").setLevel(max(logging.WARNING, logging.getLevelName(settings.log_level)))
+    # rdflib warns with a whole traceback for every literal whose text its datatype does not admit (a robot's
+    # "2026-02-30T99:00:00Z"^^xsd:dateTime, read by the SHACL check): the literal is kept as sent, and a
+    # traceback a post tells an operator nothing to act on.
+    logging.getLogger("rdflib.term").setLevel(logging.ERROR)
 
 
 def worker_app() -> FastAPI:
