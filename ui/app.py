@@ -13,7 +13,6 @@ from fastapi.responses import Response
 from fastapi.staticfiles import StaticFiles
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
-from segb_server.backend.api.middleware import HeadAsGet
 from segb_server.backend.config import Settings
 from segb_server.ui.api_client import BackendClient, BackendError, BackendUnavailable
 from segb_server.ui.badges import BadgeCache, BadgeMiddleware
@@ -85,7 +84,6 @@ def create_ui_app(
     app.add_middleware(BadgeMiddleware)  # inside the viewer's: it reads what the viewer may see
     app.add_middleware(ViewerMiddleware)
     app.add_middleware(SecurityHeaders)
-    app.add_middleware(HeadAsGet)  # `curl -I` on any page: its status and headers
     app.mount("/static", StaticFiles(directory=Path(__file__).parent / "static"), name="static")
     for router in ROUTERS:
         app.include_router(router)

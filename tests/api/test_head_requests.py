@@ -1,13 +1,11 @@
 """HEAD is answered wherever GET is (`curl -I /healthz/ready`, uptime monitors): the GET's status and headers, no
 body; a stream ends at once instead of running for nobody; a route without GET still says 405. Over real HTTP
-(uvicorn), on the API and on the UI."""
+(uvicorn)."""
 
 from __future__ import annotations
 
 import httpx
 
-from segb_server.ui.app import create_ui_app
-from tests.conftest import make_settings
 from tests.support.live_server import LiveServer
 
 
@@ -25,10 +23,3 @@ def test_head_on_a_live_stream_ends_at_once(live_api: LiveServer) -> None:
     head = httpx.head(f"{live_api.url}/reports/stream", timeout=5)
     assert head.status_code == 200 and head.headers["content-type"].startswith("text/event-stream")
     assert httpx.get(f"{live_api.url}/healthz/live", timeout=5).status_code == 200  # the server is not held up
-
-
-def test_the_ui_answers_head_too(live_api: LiveServer) -> None:
-    with LiveServer(create_ui_app(make_settings(backend_url=live_api.url))) as ui:
-        head = httpx.head(f"{ui.url}/reports")
-        assert (head.status_code, head.content) == (200, b"")
-        assert head.headers["content-type"].startswith("text/html")
