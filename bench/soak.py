@@ -37,7 +37,7 @@ import httpx
 
 from bench import views_disk
 from bench.client import BenchError, Client
-from bench.measure import Latency, machine, percentile
+from bench.measure import Latency, cpu_seconds, machine, percentile
 from bench.one_robot import OneRobot, one_robot
 from bench.server import ServerProcess, segb_server
 from segb_server.backend.services.container import VIEW_FILES
@@ -82,6 +82,8 @@ class Samples:
     rss_mib: list[tuple[float, float]] = field(default_factory=list)  # (seconds since start, MiB)
     rss_by_posts: list[tuple[int, float]] = field(default_factory=list)  # (posts acknowledged then, MiB)
     store_mib: list[tuple[float, float]] = field(default_factory=list)
+    # (posts acknowledged then, the CPU seconds the server's processes had used): what a post costs as it goes on
+    cpu_by_posts: list[tuple[int, float]] = field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -139,6 +141,7 @@ class SoakFigures:
             lines.append(f"| auditor `{page}` p50 / p95 ms (n={figures.n}) | {figures.p50:.1f} / {figures.p95:.1f} | "
                          f"≤ {self.targets['page p50 ms']:.0f} / {self.targets['page p95 ms']:.0f} |")  # fmt: skip
         lines += self._memory_lines()
+        lines += self._cpu_lines()
         disk = self.disk_mib
         views = sum(size for name, size in disk.items() if name != "store")
         lines.append(
@@ -163,6 +166,25 @@ class SoakFigures:
                 f"{store[-1][1] - store[0][1]:+.0f} | RSS ≤ what the store explains |"
             )
         return lines
+
+    def _cpu_lines(self) -> list[str]:
+        """The server's CPU a post over the run's first and last thirds: whether a post costs more as the
+        robot's history grows."""
+        cpu = self.samples.cpu_by_posts
+        third = len(cpu) // 3
+        first, last = ms_a_post(cpu[: third + 1]), ms_a_post(cpu[-third - 1 :])
+        if not third or first is None or last is None:
+            return []
+        return [f"| server CPU ms a post (its processes'), first / last third of the run | {first:.1f} / {last:.1f} "
+                f"({last / first:.2f}x) | |"]  # fmt: skip
+
+
+def ms_a_post(samples: list[tuple[int, float]]) -> float | None:
+    """CPU milliseconds a post between the first and the last of `samples` ((posts, CPU seconds) pairs); None
+    when no post was acknowledged between them."""
+    if len(samples) < 2 or samples[-1][0] <= samples[0][0]:
+        return None
+    return (samples[-1][1] - samples[0][1]) * 1000 / (samples[-1][0] - samples[0][0])
 
 
 def soak(
@@ -327,22 +349,29 @@ def _sample_memory(
     server: ServerProcess, store_files: Path, samples: Samples, stop: threading.Event, t0: float, posting: Posting
 ) -> None:
     while not stop.is_set():
-        rss = _rss_mib(server.pid)
+        processes = _server_processes(server.pid)
+        rss, cpu = _rss_mib(processes), _cpu_seconds(processes)
         now = time.monotonic() - t0
         if rss is not None:
             samples.rss_mib.append((now, rss))
             samples.rss_by_posts.append((posting.acknowledged, rss))
+        if cpu is not None:
+            samples.cpu_by_posts.append((posting.acknowledged, cpu))
         samples.store_mib.append((now, _size_mib(store_files)))
         stop.wait(5)
 
 
 def _progress(posting: Posting, samples: Samples, stop: threading.Event, started: float, seconds: float) -> None:
+    since = len(samples.cpu_by_posts) - 1  # the CPU sample the next line's cost a post is counted from
     while (elapsed := time.monotonic() - started) < seconds:
         time.sleep(min(30.0, seconds - elapsed))
         lag = samples.lag_seconds[-1] if samples.lag_seconds else 0.0
         rss = samples.rss_mib[-1][1] if samples.rss_mib else 0.0
+        cost = ms_a_post(samples.cpu_by_posts[max(0, since) :])
+        since = len(samples.cpu_by_posts) - 1
         print(f"  {time.monotonic() - started:5.0f} s: {posting.acknowledged:,} posts, reports_lag {lag:.2f} s, "
-              f"RSS {rss:.0f} MiB, errors {len(posting.errors)}", file=sys.stderr, flush=True)  # fmt: skip
+              f"RSS {rss:.0f} MiB, server CPU {'-' if cost is None else f'{cost:.1f}'} ms a post, "
+              f"errors {len(posting.errors)}", file=sys.stderr, flush=True)  # fmt: skip
 
 
 def caught_up(url: str, timeout: float = 1800) -> float | None:
@@ -384,13 +413,25 @@ def _size_mib(path: Path) -> float:
     return 0.0
 
 
-def _rss_mib(pid: int | None) -> float | None:
-    """The server's resident memory: its process and, with several API workers, theirs (its children)."""
-    if pid is None:
-        return None
-    sizes = [_own_rss_mib(process) for process in (pid, *_children(pid))]
+def _server_processes(pid: int | None) -> list[int]:
+    """The server's process and its children (several API workers, the views' process)."""
+    return [] if pid is None else [pid, *_children(pid)]
+
+
+def _rss_mib(processes: list[int]) -> float | None:
+    """The server's resident memory: every one of its processes'."""
+    sizes = [_own_rss_mib(process) for process in processes]
     known = [size for size in sizes if size is not None]
     return sum(known) if known else None
+
+
+def _cpu_seconds(processes: list[int]) -> float | None:
+    """The CPU the server's processes have used (those alive now: a worker that ended takes its share along)."""
+    used = []
+    for process in processes:
+        with contextlib.suppress(OSError, ValueError, IndexError):
+            used.append(cpu_seconds(process))
+    return sum(used) if used else None
 
 
 def _own_rss_mib(pid: int) -> float | None:

@@ -63,3 +63,23 @@ def test_memory_at_a_number_of_posts_is_read_between_the_samples_around_it() -> 
     assert rss_when(samples, 2000) == 300.0
     assert rss_when(samples, 1000) == 200.0
     assert rss_when(samples, 5000) is None  # the run never got there
+
+
+def test_the_servers_cpu_a_post_is_told_for_the_runs_first_and_last_thirds() -> None:
+    from bench.soak import Posting, Samples, SoakFigures, ms_a_post
+
+    assert ms_a_post([(0, 10.0), (1000, 15.0)]) == 5.0  # 5 CPU seconds over 1,000 posts
+    assert ms_a_post([(1000, 15.0), (1000, 16.0)]) is None  # no post between them
+    # Six samples: the first third 1,000 posts for 5 s of CPU, the last 1,000 posts for 8 s.
+    cpu = [(0, 0.0), (500, 2.5), (1000, 5.0), (2000, 11.0), (2500, 15.0), (3000, 19.0)]
+    figures = SoakFigures("oxigraph", 1, 4, True, 1, Posting(acknowledged=3000, seconds=60), Samples(cpu_by_posts=cpu),
+                          0.1, 10, 10, {"store": 1.0})  # fmt: skip
+    assert "| server CPU ms a post (its processes'), first / last third of the run | 5.0 / 8.0 (1.60x) | |" in (
+        figures.markdown()
+    )
+    assert (
+        "server CPU ms a post"
+        not in SoakFigures(
+            "oxigraph", 1, 4, True, 1, Posting(), Samples(cpu_by_posts=cpu[:2]), 0.1, 10, 10, {"store": 1.0}
+        ).markdown()
+    )  # too few samples to tell
