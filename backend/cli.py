@@ -137,7 +137,11 @@ def _parser() -> argparse.ArgumentParser:
     upkeep = commands.add_parser(
         "upkeep", help="tell how a report's rows are kept current as robots write (or why it is evaluated in full)"
     )
-    upkeep.add_argument("report", nargs="?", help="a report's name, e.g. conversations (default: every report)")
+    upkeep.add_argument(
+        "report",
+        nargs="?",
+        help="a report's name, e.g. conversations, or a timeline kind's, e.g. timeline/message (default: every report)",
+    )
     upkeep.add_argument("--sparql-dir", type=Path, help="directory of the .rq files (SPARQL_DIR)")
     upkeep.set_defaults(handler=_upkeep)
 
@@ -305,14 +309,18 @@ def _rebuild(args: argparse.Namespace) -> int:
 def _upkeep(args: argparse.Namespace) -> int:
     from segb_server.backend.services.reports.service import FOLDER
     from segb_server.backend.services.sparql.catalog import Catalog
+    from segb_server.backend.services.timeline.kinds import FOLDER as TIMELINE_FOLDER
     from segb_server.backend.services.upkeep.kept_queries.describe import describe
 
     catalog = Catalog(_settings(args, "sparql_dir").sparql_dir)
     reports = catalog.under(FOLDER)
     if args.report is not None:
-        reports = [query for query in reports if query.name == f"{FOLDER}/{args.report}"]
+        # A report by its name; the timeline's kinds, kept alike, by theirs (`timeline/message`).
+        wanted = args.report if "/" in args.report else f"{FOLDER}/{args.report}"
+        kept = [*reports, *catalog.under(TIMELINE_FOLDER)]
+        reports = [query for query in kept if query.name == wanted]
         if not reports:
-            names = ", ".join(query.name.removeprefix(f"{FOLDER}/") for query in catalog.under(FOLDER))
+            names = ", ".join(query.name.removeprefix(f"{FOLDER}/") for query in kept)
             return _fail(f"no report named {args.report!r}; reports: {names}")
     print("\n\n".join("\n".join(describe(query)) for query in reports))
     return 0

@@ -43,3 +43,15 @@ def test_an_unknown_report_is_refused_naming_the_reports(capsys: pytest.CaptureF
     assert main(["upkeep", "no-such-report"]) == 2
     error = capsys.readouterr().err
     assert "no report named 'no-such-report'" in error and "conversations" in error
+
+
+def test_a_timeline_kind_is_told_too_with_what_rules_out_a_new_key(capsys: pytest.CaptureFixture[str]) -> None:
+    # The timeline's kinds are kept as the reports are; what tells that a key a batch introduced has no row is
+    # printed with them: the only classes a perception may have, the kinds that make an activity another kind's.
+    assert main(["upkeep", "timeline/perception"]) == 0
+    perception = capsys.readouterr().out
+    assert perception.startswith("timeline/perception: kept as rows")
+    assert "(?perceptionClass in oro:DetectedHumanEvent, oro:EmotionRecognitionEvent)" in perception
+    assert main(["upkeep", "timeline/observation"]) == 0
+    observation = capsys.readouterr().out
+    assert "what no row may have matches among them (NOT EXISTS): ?observation rdf:type schema:Message ." in observation

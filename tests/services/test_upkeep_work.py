@@ -262,3 +262,30 @@ def test_a_shapes_targets_among_a_batchs_nodes_are_one_row_each(tmp_path: Path) 
     targets = rules["subject-without-type"].targets(store, [f"<{hub}>", "<https://example.org/nothing>"])
     assert {node for nodes in targets.values() for node in nodes} == {f"<{hub}>"}
     assert store.rows <= store.queries, (store.queries, store.rows)
+
+
+def _asked_by(view: Any, texts: Sequence[str]) -> int:
+    """How many of `texts` are `view`'s own query (its rows for some keys): the same text up to its WHERE."""
+    head = view.text.partition("WHERE")[0]
+    return sum(1 for text in texts if text.partition("WHERE")[0] == head)
+
+
+def test_a_kind_whose_rows_a_visit_cannot_have_asks_the_store_nothing(tmp_path: Path) -> None:
+    # A receptionist's visit logs a listening and a response activity and their messages: no detection of a human
+    # or reading of an emotion, no activity of another kind, no observation that is not a message. The timeline's
+    # perceptions need a detection's or a reading's type (`FILTER (?perceptionClass IN (…))`), its other activities
+    # and its observations exclude what the visit's resources are (`FILTER NOT EXISTS { ?activity a ?moreSpecific
+    # … }`, `FILTER NOT EXISTS { ?observation a schema:Message }`): told among the visit's own triples, which are
+    # all there is about its new resources, those kinds have no row to ask the store for.
+    views = kept_views(tmp_path, RecordingStore)
+    store = views.store
+    assert isinstance(store, RecordingStore)
+    posts = receptionist_posts(12)
+    views.history(posts[:10])
+    store.texts.clear()
+    for post in posts[10:]:
+        views.post(post)
+    asked = {view.name: _asked_by(view, store.texts) for view in views.kept if hasattr(view, "text")}
+    assert asked["timeline/perception"] == asked["timeline/activity"] == asked["timeline/observation"] == 0, asked
+    # The kinds a visit has rows of still ask for them.
+    assert asked["timeline/listening"] > 0 and asked["timeline/response"] > 0 and asked["timeline/message"] > 0, asked

@@ -77,10 +77,13 @@ class History:
         core = [
             f"{activity} {term('rdf:type')} {term('segb:LoggedActivity')} .",
             f"{activity} {term('prov:startedAtTime')} {time_literal(seconds)} .",
-            f"{message} {term('rdf:type')} {term('schema:Message')} .",
             f'{message} {term("schema:text")} "said {n}"@en .',
             f"{message} {term('prov:wasGeneratedBy')} {activity} .",
         ]
+        # Mostly with its message; else apart, so that it may come late (until then an observation, not a message)
+        message_type = [f"{message} {term('rdf:type')} {term('schema:Message')} ."]
+        if rng.random() < 0.8:
+            core, message_type = core + message_type, []
         performed = [f"{activity} {term('segb:wasPerformedBy')} {iri('robot', robot)} ."]
         shared = [
             f"{activity} {term('schema:about')} {event} .",
@@ -89,7 +92,13 @@ class History:
         ]
         # What tells who spoke may come late: the activity's kind, the message's type, a sender (a human, the
         # robot, or none).
-        kind = [f"{activity} {term('rdf:type')} {term(rng.choice(['oro:ListeningEvent', 'oro:ResponseAction']))} ."]
+        kinds = rng.choices(
+            ["oro:ListeningEvent", "oro:ResponseAction", "oro:DetectedHumanEvent", "oro:EmotionRecognitionEvent"],
+            weights=[4, 4, 1, 1],
+        )
+        if rng.random() < 0.15:
+            kinds.append("oro:DetectedHumanEvent")  # of two kinds: the most specific is its timeline's
+        kind = [f"{activity} {term('rdf:type')} {term(name)} ." for name in dict.fromkeys(kinds)]
         typed = [f"{message} {term('rdf:type')} {term('oro:InitialMessage')} ."] if rng.random() < 0.3 else []
         speaker = rng.choices([iri("human", human), iri("robot", robot), None], weights=[5, 2, 3])[0]
         sender = [f"{message} {term('schema:sender')} {speaker} ."] if speaker else []
@@ -111,7 +120,7 @@ class History:
             f"{state} {term('prov:generatedAtTime')} {time_literal(seconds)} .",
             f'{state} {term("rdfs:comment")} "note {n}" .',
         ]
-        parts = [core, performed, kind, typed, shared, sender, model, feeling]
+        parts = [core, message_type, performed, kind, typed, shared, sender, model, feeling]
         if rng.random() < 0.3:
             parts.append(snapshot)
         return [part for part in parts if part]

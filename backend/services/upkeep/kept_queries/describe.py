@@ -9,7 +9,7 @@ import re
 from segb_server.backend.services.sparql.catalog import CatalogQuery
 from segb_server.backend.services.upkeep.kept_queries.facets import facet_patterns
 from segb_server.backend.services.upkeep.kept_queries.keys import chains
-from segb_server.backend.services.upkeep.kept_queries.plan import Unsupported, declared_key, plan_report
+from segb_server.backend.services.upkeep.kept_queries.plan import Pattern, Unsupported, declared_key, plan_report
 from segb_server.backend.services.upkeep.kept_queries.rows import Layout
 from segb_server.backend.vocabulary import compact
 
@@ -68,12 +68,28 @@ def describe(query: CatalogQuery) -> list[str]:
         for chain in chains(plan, pattern, f"?{unit}"):
             lines.append(f"    {_short(pattern.sparql())}  → from {' '.join(chain.names)}: {_short(chain.steps)}")
     if plan.required:
-        required = " ".join(_short(pattern.sparql()) for pattern in plan.required)
         lines.append(
-            f"  a key the batch introduced is evaluated only when what every row needs can match among the batch's "
-            f"triples: {required}"
+            "  a key the batch introduced is evaluated only when what every row needs can match among the batch's "
+            f"triples: {_joined(plan.required, plan.allowed_in(plan.required))}"
+        )
+    for body in plan.exclusions_of(f"?{unit}"):
+        lines.append(
+            "  and not when what no row may have matches among them (NOT EXISTS): "
+            f"{_joined(body, plan.allowed_in(body))}"
         )
     return lines
+
+
+def _joined(patterns: list[Pattern], allowed: dict[str, frozenset[str]]) -> str:
+    """Patterns as SPARQL, with the only values their VALUES or `IN (…)` allow a variable."""
+    text = " ".join(_short(pattern.sparql()) for pattern in patterns)
+    used = {variable for pattern in patterns for variable in pattern.variables()}
+    narrowed = [
+        f"{variable} in {', '.join(_short(value) for value in sorted(values))}"
+        for variable, values in sorted(allowed.items())
+        if variable in used
+    ]
+    return text + (f" ({'; '.join(narrowed)})" if narrowed else "")
 
 
 def _short(sparql: str) -> str:

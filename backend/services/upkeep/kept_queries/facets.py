@@ -41,7 +41,7 @@ class FacetPairs:
             facet.anchor,
             tuple(
                 (tuple((p.subject, tuple(sorted(p.predicates)), p.object) for p in body),
-                 tuple(sorted(_allowed(plan, body).items())))
+                 tuple(sorted(plan.allowed_in(body).items())))
                 for body in facet.bodies
             ),
         )  # fmt: skip
@@ -51,7 +51,7 @@ class FacetPairs:
                 _without(body, match.pattern),
                 sorted(match.pattern.variables()),
                 [facet.anchor, self.parameter],
-                _allowed(plan, body),
+                plan.allowed_in(body),
             )
             for match, body in self._matches
         }
@@ -133,23 +133,13 @@ def _without(body: tuple[Pattern, ...], pattern: Pattern) -> list[Pattern]:
     return rest
 
 
-def _allowed(plan: ReportPlan, body: tuple[Pattern, ...]) -> dict[str, frozenset[str]]:
-    """The texts the VALUES of `body`'s groups allow each variable (several VALUES of one variable: all hold)."""
-    groups = {pattern.group for pattern in body}
-    allowed: dict[str, frozenset[str]] = {}
-    for (group, variable), values in plan.narrowed.items():
-        if group in groups:
-            allowed[variable] = allowed[variable] & values if variable in allowed else values
-    return allowed
-
-
 def facet_table(plan: ReportPlan, facet: FacetFilter) -> str:
     """The table of a facet's (value, anchor) pairs, named by what the pairs depend on (its anchor, its bodies'
     patterns and the values their groups allow): the reports of one database whose facets have the same
     patterns keep their pairs once (the timeline's kinds: one table where eight held the same pairs)."""
     bodies = [
         [[[p.subject, sorted(p.predicates), p.object] for p in body],
-         [[variable, sorted(values)] for variable, values in sorted(_allowed(plan, body).items())]]
+         [[variable, sorted(values)] for variable, values in sorted(plan.allowed_in(body).items())]]
         for body in facet.bodies
     ]  # fmt: skip
     described = [facet.anchor, bodies]

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import itertools
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -76,6 +77,15 @@ class Aggregate:
     distinct: bool
 
 
+@dataclass(frozen=True)
+class Exclusion:
+    """`FILTER NOT EXISTS { … }` in the top group, its body triple patterns alone: `shared` are the variables it
+    has in common with the rest of the query (what a solution of the query binds when the body is tried)."""
+
+    patterns: list[Pattern]
+    shared: frozenset[str]
+
+
 @dataclass
 class ReportPlan:
     name: str
@@ -97,6 +107,9 @@ class ReportPlan:
     # The patterns every solution matches: the top group's own (none when a sub-select's patterns, whose variables
     # are its own, are among them)
     required: list[Pattern] = field(default_factory=list)
+    # The top group's `FILTER NOT EXISTS { … }` of triple patterns alone (and VALUES), each with the variables it
+    # shares with the rest of the query: a solution of one that binds only those excludes their values' rows
+    exclusions: list[Exclusion] = field(default_factory=list)
 
     @property
     def is_aggregate(self) -> bool:
@@ -113,6 +126,21 @@ class ReportPlan:
         if len(self.key) != 1:
             raise Unsupported("a report's key is one variable")
         return self.key[0][1:]
+
+    def allowed_in(self, patterns: Iterable[Pattern]) -> dict[str, frozenset[str]]:
+        """The only IRIs each variable may be in the groups of `patterns` (their VALUES and `FILTER (?x IN (…))`;
+        several of one variable: all hold)."""
+        groups = {pattern.group for pattern in patterns}
+        allowed: dict[str, frozenset[str]] = {}
+        for (group, variable), values in self.narrowed.items():
+            if group in groups:
+                allowed[variable] = allowed[variable] & values if variable in allowed else values
+        return allowed
+
+    def exclusions_of(self, variable: str) -> list[list[Pattern]]:
+        """The bodies of the top group's NOT EXISTS that share `variable` alone with the rest of the query: a
+        solution of one, with `variable` bound to a value, means no row has that value."""
+        return [exclusion.patterns for exclusion in self.exclusions if exclusion.shared == frozenset({variable})]
 
     def guaranteed_patterns(self, pattern: Pattern) -> list[Pattern]:
         """The patterns that hold in every solution in which `pattern` is matched."""
@@ -161,6 +189,7 @@ def plan_report(query: CatalogQuery) -> ReportPlan:
         aliases=walker.aliases,
         narrowed=walker.narrowed,
         required=[] if walker.projections > 1 else walker.mandatory[root],
+        exclusions=[] if walker.projections > 1 else walker.exclusions(),
     )
     if plan.is_aggregate:
         if not all(name in plan.group_by or name in {a.output for a in plan.aggregates} for name in columns):
@@ -194,6 +223,8 @@ class _Walker:
         self.narrowed: dict[tuple[int, str], frozenset[str]] = {}
         self.projections = 0  # more than one: a sub-select
         self._fresh = itertools.count()
+        self._negated: list[int] = []  # the groups of the top group's NOT EXISTS bodies
+        self._bound_elsewhere: set[str] = set()  # variables a BIND or VALUES binds (patterns' are in `patterns`)
 
     def new_group(self, parent: int | None) -> int:
         group = len(self.parent)
@@ -210,6 +241,20 @@ class _Walker:
                 chain.add(current)
                 current = self.parent[current]
             found[group] = chain
+        return found
+
+    def exclusions(self) -> list[Exclusion]:
+        """The top group's NOT EXISTS bodies of triple patterns alone (no nested filter), with what they share."""
+        found = []
+        for body in self._negated:
+            if any(parent == body for parent in self.parent.values()):
+                continue  # a nested EXISTS: its patterns are not all the body needs
+            inside = {variable for pattern in self.mandatory[body] for variable in pattern.variables()}
+            outside = self._bound_elsewhere.union(
+                *(pattern.variables() for pattern in self.patterns if pattern.group != body)
+            )
+            if self.mandatory[body]:
+                found.append(Exclusion(list(self.mandatory[body]), frozenset(inside & outside)))
         return found
 
     def facets(self, columns: list[str]) -> list[FacetFilter]:
@@ -262,6 +307,7 @@ class _Walker:
         elif name == "Extend":
             self._expression(node["expr"], group)
             expression, bound = node["expr"], f"?{node['var']}"
+            self._bound_elsewhere.add(bound)
             if isinstance(expression, Variable) and str(expression).startswith("__agg_"):
                 self._renamed[str(expression)] = str(node["var"])
             elif isinstance(expression, Variable):
@@ -277,7 +323,7 @@ class _Walker:
             self.group_by = ["?" + str(term) for term in node.get("expr") or [] if isinstance(term, Variable)]
             self.visit(node["p"], group)
         elif name == "ToMultiSet" or name == "values":
-            pass
+            self._bound_elsewhere.update(f"?{variable}" for row in node.get("res") or [] for variable in row)
         else:
             raise Unsupported(f"{name} is not supported")
 
@@ -300,6 +346,11 @@ class _Walker:
             if (listed := _iri_list(conjunct)) is not None:
                 self.narrowed[(group, listed[0])] = listed[1]
             switched = _switched_filter(conjunct)
+            if switched is None and _is_not_exists(conjunct) and self.parent[group] is None:
+                body = self.new_group(group)
+                self._graph(conjunct["graph"], body)  # type: ignore[index]
+                self._negated.append(body)
+                continue
             if switched is None:
                 self._expression(conjunct, group)
                 continue
@@ -394,6 +445,10 @@ def _iri_list(expression: object) -> tuple[str, frozenset[str]] | None:
     if not all(isinstance(other, URIRef) for other in others):
         return None
     return f"?{variable}", frozenset(other.n3() for other in others)
+
+
+def _is_not_exists(expression: object) -> bool:
+    return isinstance(expression, CompValue) and expression.name == "Builtin_NOTEXISTS"
 
 
 def _conjuncts(expression: object) -> list[object]:

@@ -112,9 +112,18 @@ class KeptQuery:
         self.text = text  # the query whose answer the rows are (`kept_text`)
         self.keys = KeyFinder(plan, unit, ignored=facet_patterns(plan))
         self.facets = [FacetPairs(plan, facet) for facet in plan.facet_filters]
-        # What every row needs (the query's top-level patterns), as far as it can be joined among a batch's triples
-        # from a key the batch introduced: with no solution there, that key has no row to ask the store for.
-        self._needed = DeltaJoin(plan.required, [f"?{unit}"], [f"?{unit}"], relaxed=True)
+        # What every row needs (the query's top-level patterns, their variables narrowed by its VALUES and
+        # `IN (…)` lists), as far as it can be joined among a batch's triples from a key the batch introduced:
+        # with no solution there, that key has no row to ask the store for.
+        start = [f"?{unit}"]
+        self._needed = DeltaJoin(plan.required, start, start, plan.allowed_in(plan.required), relaxed=True)
+        # What no row may have (a top-level NOT EXISTS about the key alone): a solution among the batch's triples
+        # from a key the batch introduced is in the store too, so that key has no row either.
+        self._excluded = [
+            join
+            for body in plan.exclusions_of(f"?{unit}")
+            if (join := DeltaJoin(body, start, start, plan.allowed_in(body))).usable
+        ]
 
     def stored_through(self) -> int | None:
         fingerprint, through = self.rows.state(self.name)
@@ -157,7 +166,7 @@ class KeptQuery:
             # A key the batch introduced whose rows would need a triple the batch lacks had none before it (no
             # triple named it) and has none now: nothing to evaluate, replace or announce.
             units = self._needed.possible(delta, self.keys.units(delta, self.store))
-            replaced = sorted(unit for unit in units if self._needed.run(delta, [unit]) != [])
+            replaced = sorted(unit for unit in units if self._may_have_rows(delta, unit))
             rows = self._evaluate(replaced) if replaced else {}
             facets = [(pairs.facet, new) for pairs in self.facets if (new := pairs.new_pairs(delta, self.store))]
         with self.rows.db.writing():
@@ -170,6 +179,13 @@ class KeptQuery:
             self.rows.set_state(self.name, self.fingerprint, through)
         if replaced:
             self.rows.changed.notify()
+
+    def _may_have_rows(self, delta: Delta, unit: str) -> bool:
+        """False for a key the batch introduced (it had no row before) that the batch's triples show can have
+        none: what every row needs cannot match, or what no row may have does."""
+        if self._needed.run(delta, [unit]) == []:
+            return False
+        return not any(join.run(delta, [unit]) for join in self._excluded)  # None (not told here) or [] (none)
 
     # --- queries -------------------------------------------------------------------------------------
 
