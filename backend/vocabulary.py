@@ -32,6 +32,16 @@ PREFIXES: dict[str, str] = {
 
 # The one statement that credits an act to a robot: the graph's lanes and the explanations both read it from here.
 PERFORMED_BY = PREFIXES["segb"] + "wasPerformedBy"
+# The statements whose object is credited with what their subject is: an act, words said, a state, a result. A
+# token's write scopes hold for their objects as for subjects: its robot may not credit another with anything.
+CREDITING = frozenset(
+    {
+        PERFORMED_BY,
+        PREFIXES["schema"] + "sender",
+        PREFIXES["prov"] + "wasAttributedTo",
+        PREFIXES["prov"] + "wasAssociatedWith",
+    }
+)
 
 
 def sparql_prologue() -> str:

@@ -29,6 +29,7 @@ from segb_server.backend.services.writing.receipts import Receipt
 from segb_server.backend.services.writing.write_path import WritePath
 from segb_server.backend.store.base import StoreUnavailable
 from segb_server.backend.store.terms import term_text
+from segb_server.backend.vocabulary import CREDITING
 
 logger = logging.getLogger("segb.ingest")
 
@@ -193,15 +194,22 @@ def post_entry(quads: list[Quad], user: str, claimed_user: str | None, payload_s
 
 def check_scopes(quads: list[Quad], scopes: tuple[str, ...]) -> None:
     """With write scopes, every subject named by an IRI must start with one of them (blank nodes are the
-    post's own); the first that does not refuses the whole post."""
+    post's own), and so must the agent a statement credits with an act, words or a state (`CREDITING`): a
+    robot's token may not put acts in another robot's record. The first that does not refuses the whole post."""
     if not scopes:
         return
     for quad in quads:
-        subject = quad.subject
+        subject, credited = quad.subject, quad.object
         if isinstance(subject, NamedNode) and not subject.value.startswith(scopes):
             raise PermissionDenied(
                 f"The token may write about {', '.join(scopes)} only; the post describes <{subject.value}>."
             )
+        if quad.predicate.value in CREDITING and isinstance(credited, NamedNode):
+            if not credited.value.startswith(scopes):
+                raise PermissionDenied(
+                    f"The token may write about {', '.join(scopes)} only; the post credits <{credited.value}> "
+                    f"(<{quad.predicate.value}>)."
+                )
 
 
 def format_for(path: Path) -> RdfFormat:
