@@ -166,6 +166,32 @@ def test_a_file_named_twice_is_caught(served: Served, tmp_path: Path) -> None:
     assert "triples.nt is in the archive twice" in checked.stdout, checked.stdout
 
 
+def test_a_bundle_corrupted_inside_its_compressed_data_is_refused_without_a_traceback(
+    served: Served, tmp_path: Path
+) -> None:
+    # A byte flipped inside a file's deflated data makes it unreadable (or fail the archive's checksum): the
+    # verifier says the bundle is not verified, as it says of any other damage, and prints no Python traceback.
+    files = bundle_of(served, **WINDOW)
+    (tmp_path / "server.pem").write_bytes(served.key)
+    bundle = tmp_path / "deflated.zip"
+    with zipfile.ZipFile(bundle, "w", compression=zipfile.ZIP_DEFLATED) as archive:
+        for name, data in files.items():
+            archive.writestr(name, data)
+    genuine = bundle.read_bytes()
+    with zipfile.ZipFile(bundle) as archive:
+        entries = [(info.header_offset + 30 + len(info.filename) + len(info.extra), info.compress_size)
+                   for info in archive.infolist() if info.compress_size > 8]  # fmt: skip
+    for start, size in entries:
+        for at in (start, start + size // 2):
+            damaged = bytearray(genuine)
+            damaged[at] ^= 0x5A
+            (tmp_path / "damaged.zip").write_bytes(bytes(damaged))
+            key = str(tmp_path / "server.pem")
+            checked = segb("verify-evidence", str(tmp_path / "damaged.zip"), "--public-key", key)
+            assert checked.returncode == 1 and "NOT verified" in checked.stdout, (at, checked.stdout, checked.stderr)
+            assert "Traceback" not in checked.stderr, checked.stderr
+
+
 def test_a_re_signed_bundle_passes_only_against_its_own_key(served: Served, tmp_path: Path) -> None:
     files = bundle_of(served, **WINDOW)
     resigned_by_another_key(files, change=False)

@@ -9,6 +9,7 @@ import base64
 import hashlib
 import json
 import zipfile
+import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -40,7 +41,9 @@ def verify_bundle(path: Path, public_key_pem: bytes | None = None) -> Report:
         with zipfile.ZipFile(path) as bundle:
             names = bundle.namelist()
             files = {name: bundle.read(name) for name in names}
-    except (OSError, zipfile.BadZipFile) as error:
+    except (OSError, zipfile.BadZipFile, zlib.error, EOFError, NotImplementedError, RuntimeError) as error:
+        # A damaged archive fails in several ways: a bad checksum, a deflate stream that does not decode, a
+        # compression method or an encryption this reader does not know. Each is a bundle not verified.
         report.problems.append(f"not a readable evidence bundle: {error}")
         return report
     # Archive tools differ on which of two entries of one name they show: whichever one this check read, an

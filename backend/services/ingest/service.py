@@ -204,12 +204,15 @@ def check_scopes(quads: list[Quad], scopes: tuple[str, ...]) -> None:
             raise PermissionDenied(
                 f"The token may write about {', '.join(scopes)} only; the post describes <{subject.value}>."
             )
-        if quad.predicate.value in CREDITING and isinstance(credited, NamedNode):
-            if not credited.value.startswith(scopes):
-                raise PermissionDenied(
-                    f"The token may write about {', '.join(scopes)} only; the post credits <{credited.value}> "
-                    f"(<{quad.predicate.value}>)."
-                )
+        if (
+            quad.predicate.value in CREDITING
+            and isinstance(credited, NamedNode)
+            and not credited.value.startswith(scopes)
+        ):
+            raise PermissionDenied(
+                f"The token may write about {', '.join(scopes)} only; the post credits <{credited.value}> "
+                f"(<{quad.predicate.value}>)."
+            )
 
 
 def format_for(path: Path) -> RdfFormat:
