@@ -77,6 +77,10 @@ def erased(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Erased]:
         for observation in observations:
             resolved = httpx.post(f"{server.url}/shared-context/resolve", json=observation)
             assert resolved.status_code == 200, resolved.text
+        # An auditor's requests naming her IRI in their path (a receipt asked for by it, a mistyped route): the
+        # server's log records each request's path.
+        for path in (f"/ledger/{quote(str(visit.iris['ines']), safe='')}", f"/no-such-page/{visit.iris['ines']}"):
+            assert httpx.get(f"{server.url}{path}").status_code == 404
         # An auditor's SPARQL query takes a copy of the store (users' queries run on copies).
         assert INES_NAME in httpx.post(f"{server.url}/sparql", data={"query": "SELECT * { ?s ?p ?o }"}).text
         before = human_rows(server.url, visit)

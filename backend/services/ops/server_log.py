@@ -31,7 +31,6 @@ LEVELS = ("DEBUG", "INFO", "WARNING", "ERROR", "CRITICAL")
 # Structured fields a record may carry (passed as `extra=` by the request logger and others).
 FIELDS = ("request_id", "user", "origin_ip", "method", "path", "status", "duration_ms", "triples_written", "log_id")
 REQUIRED = ("time", "level", "logger", "message")  # what every entry has; a line without them was not ours
-_REQUEST_ENTRY = '"logger": "segb.requests"'  # as `line_of` writes a request's entry
 _IRI = re.compile(r"https?(?::|%3A)[^\s\"'<>\\]+", re.IGNORECASE)
 RING_ENTRIES = 5000
 
@@ -197,15 +196,13 @@ class ServerLog:
 
     def forget(self, iris: Collection[str], texts: Collection[str]) -> int:
         """Remove every entry naming one of `iris` or quoting one of `texts` (an erased person's), from the file
-        and its rotations; returns how many went. A request's entry holds only the request's own facts (never a
-        query string, a body, or a person's IRI in its path) and is kept; the others, few, are read: the IRIs
-        they name (as written, or percent-encoded in a URL) looked up, the texts searched for."""
+        and its rotations; returns how many went. Every entry is read, a request's too (its path may name a
+        person: `/ledger/{id}`, a mistyped route): the IRIs it names (as written, or percent-encoded in a URL)
+        looked up, the texts searched for."""
         wanted = {form for iri in iris for form in (iri, quote(iri, safe=""))}
-        needles = [form for text in texts if text for form in {text, json.dumps(text)[1:-1]}]
+        needles = [form for text in texts if text for form in {text, json.dumps(text)[1:-1], quote(text, safe="")}]
 
         def quotes(line: str) -> bool:
-            if _REQUEST_ENTRY in line:
-                return False
             if any(found.rstrip(".,;)") in wanted for found in _IRI.findall(line)):
                 return True
             return any(needle in line for needle in needles)
