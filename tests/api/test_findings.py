@@ -130,6 +130,28 @@ def test_a_late_post_that_resolves_a_finding_removes_it(api: httpx.Client) -> No
     assert all_findings(api, rule="activity-without-start") == []
 
 
+def test_a_finding_about_a_message_names_the_robot_that_logged_it_never_its_sender(api: httpx.Client) -> None:
+    """A person's message in the PyPI client's shape (`schema:sender` and `prov:wasAttributedTo` her) without its
+    text: the finding's robot is the one that performed the activity that generated the message, not her."""
+    robot, person = "https://example.org/trap/robot", "https://example.org/people/zoe"
+    turtle = f"""
+        @prefix schema: <http://schema.org/> . @prefix prov: <http://www.w3.org/ns/prov#> .
+        @prefix segb: <http://www.gsi.upm.es/ontologies/segb/ns#> . @prefix oro: <http://kb.openrobots.org#> .
+        <{robot}> a oro:Robot .
+        <{person}> a oro:Human .
+        <https://example.org/trap/listen> a segb:LoggedActivity, oro:ListeningEvent ; segb:wasPerformedBy <{robot}> ;
+            prov:startedAtTime "2026-05-02T10:00:00Z"^^<http://www.w3.org/2001/XMLSchema#dateTime> .
+        <https://example.org/trap/heard> a schema:Message ; schema:sender <{person}> ; prov:wasAttributedTo <{person}> ;
+            prov:wasGeneratedBy <https://example.org/trap/listen> .
+    """
+    assert publisher_for(api, "trap").publish_turtle(turtle)["triples_new"] > 0
+    settle(api)
+    mute = [f for f in all_findings(api, rule="message-without-text") if f["focus"] == "https://example.org/trap/heard"]
+    assert len(mute) == 1 and mute[0]["robot"] == robot, mute
+    assert all_findings(api, robot=person) == []
+    assert [f["focus"] for f in all_findings(api, robot=robot)] == ["https://example.org/trap/heard"]
+
+
 def test_the_answer_delay_and_the_intensity_threshold_are_the_rules_own_defaults(api: httpx.Client) -> None:
     publisher = publisher_for(api, "mirror")
     mission = EmotionMirrorMission.start(

@@ -14,7 +14,7 @@ import hashlib
 import json
 import logging
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import orjson
@@ -26,7 +26,9 @@ from segb_server.backend.services.rules.shapes import (
     NodeStatements,
     ShapeResult,
     ShapeRule,
+    generated_by_newly_performed,
     read_predicates,
+    robots_of_generating,
     statements,
 )
 from segb_server.backend.services.upkeep.database import ViewDatabase
@@ -105,7 +107,8 @@ class ShapeFindings:
         checked: dict[str, tuple[set[str], dict[str, list[Record]]]] = {}
         if delta:
             # Every rule's targets among the nodes the batch names, then their statements read once for all.
-            found = check_rules(self.rules, self.store, _named_nodes(delta), delta)
+            named = _named_nodes(delta) | generated_by_newly_performed(self.store, delta)
+            found = check_rules(self.rules, self.store, named, delta)
             checked = {rule_id: (units, self._records(rows)) for rule_id, (units, rows) in found.items()}
         changed = False
         with self.db.writing() as connection:
@@ -277,13 +280,28 @@ def check_rules(
         targets = {rule.rule.id: rule.targets(store, None) for rule in rules}
         nodes = sorted({node for found in targets.values() for nodes in found.values() for node in nodes})
         data, contexts = statements(store, nodes, read_predicates(rules)) if nodes else (NodeStatements(), {})
-    checked: dict[str, tuple[set[str], dict[str, list[Found]]]] = {}
+    validated: dict[str, tuple[set[str], list[ShapeResult]]] = {}
     for rule in rules:
         units = set().union(*targets[rule.rule.id].values()) if targets[rule.rule.id] else set()
-        results = rule.validate(data, targets[rule.rule.id]) if units else []
+        validated[rule.rule.id] = (units, rule.validate(data, targets[rule.rule.id]) if units else [])
+    # A finding about what an activity generated, saying no robot of its own, is the robot's of that activity:
+    # looked up for the nodes found at fault only.
+    generating = {
+        context.generated_by
+        for _, results in validated.values()
+        for result in results
+        if (context := contexts.get(result.focus)) is not None and context.robot is None and context.generated_by
+    }
+    robots = robots_of_generating(store, generating, delta) if generating else {}
+    checked: dict[str, tuple[set[str], dict[str, list[Found]]]] = {}
+    for rule in rules:
+        units, results = validated[rule.rule.id]
         found: dict[str, list[Found]] = {}
         for result in results:
-            found.setdefault(result.focus, []).append(_record(result, contexts.get(result.focus, Context())))
+            context = contexts.get(result.focus, Context())
+            if context.robot is None and context.generated_by in robots:
+                context = replace(context, robot=robots[context.generated_by])
+            found.setdefault(result.focus, []).append(_record(result, context))
         checked[rule.rule.id] = (units, found)
     return checked
 

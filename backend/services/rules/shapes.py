@@ -30,14 +30,19 @@ from segb_server.backend.services.upkeep.delta import Delta
 from segb_server.backend.store.base import Store, select
 from segb_server.backend.store.sparql_text import top_level_where, top_level_where_end
 from segb_server.backend.store.terms import bind_rows, term_text
-from segb_server.backend.vocabulary import PREFIXES
+from segb_server.backend.vocabulary import PERFORMED_BY, PREFIXES
 
 NODES_PER_QUERY = 300
 FOCUS_PER_RUN = 200
 PROV, SEGB = PREFIXES["prov"], PREFIXES["segb"]
 # What a finding lists besides the shape's message, read from the focus node's own statements.
 TIMES = tuple(PROV + name for name in ("startedAtTime", "endedAtTime", "generatedAtTime"))
-ACTORS = (SEGB + "wasPerformedBy", PROV + "wasAttributedTo")
+# Its robot: the one that performed it; or the agent it is attributed to, unless it is something said (the PyPI
+# client attributes a message to its sender, a person as often as not); or, for what an activity generated (a
+# message, an observation), the robot that performed that activity (`robots_of_generating`).
+ATTRIBUTED_TO, GENERATED_BY = PROV + "wasAttributedTo", PROV + "wasGeneratedBy"
+SENDER, MESSAGE = PREFIXES["schema"] + "sender", PREFIXES["schema"] + "Message"
+ACTORS = (PERFORMED_BY, ATTRIBUTED_TO, SENDER, GENERATED_BY)
 XSD_DATETIME = PREFIXES["xsd"] + "dateTime"
 RDF_TYPE = str(RDF.type)
 
@@ -54,10 +59,19 @@ class ShapeResult:
 
 @dataclass(frozen=True)
 class Context:
-    """What the findings page lists about a focus node, from its own statements: its time and its robot."""
+    """What the findings page lists about a focus node, from its own statements: its time and its robot (or the
+    activity that generated it, whose robot is then its own)."""
 
     time: object | None = None  # a pyoxigraph term (a literal xsd:dateTime)
     robot: object | None = None  # a pyoxigraph term (an IRI)
+    generated_by: str | None = None  # N-Triples text of an IRI
+
+    @classmethod
+    def of(cls, noted: dict[str, object]) -> Context:
+        said = bool(noted.get("said"))
+        robot = noted.get("performer") or (None if said else noted.get("attributed"))
+        generated_by = noted.get("generated_by")
+        return cls(noted.get("time"), robot, term_text(generated_by) if isinstance(generated_by, NamedNode) else None)
 
 
 class NodeStatements:
@@ -224,7 +238,39 @@ def statements(
             subject, predicate, value = term_text(row["s"]), row["p"].value, row["o"]
             data.add(subject, predicate, value)
             _note_context(contexts.setdefault(subject, {}), predicate, value)
-    return data, {node: Context(found.get("time"), found.get("robot")) for node, found in contexts.items()}
+    return data, {node: Context.of(found) for node, found in contexts.items()}
+
+
+def generated_by_newly_performed(store: Store, delta: Delta) -> set[str]:
+    """What the activities the batch names a performer of generated, when the store held them before (a late
+    link): their findings' robot becomes that performer, so they are checked again. What a fresh activity
+    generated is among the batch's own triples, so named by it already."""
+    activities = sorted({fact.subject_text for fact in delta.with_predicate(PERFORMED_BY)} - delta.fresh)
+    generated: set[str] = set()
+    for chunk in _chunks(activities):
+        text = f"SELECT ?s WHERE {{ ?s <{GENERATED_BY}> ?o }}"
+        bound = bind_rows(text, ["o"], [[NamedNode(node[1:-1])] for node in chunk], wrap=store.wraps_values)
+        generated.update(term_text(row["s"]) for row in select(store, bound).rows)
+    return generated
+
+
+def robots_of_generating(store: Store, activities: set[str], delta: Delta | None = None) -> dict[str, object]:
+    """The robot that performed each of these activities (N-Triples texts): from the batch's own triples for
+    those it introduced, else asked of the store."""
+    found: dict[str, object] = {}
+    asked = sorted(activities)
+    if delta is not None and delta.fresh:
+        for activity in [activity for activity in asked if activity in delta.fresh]:
+            performed = delta.about(PERFORMED_BY, activity)
+            if performed:
+                found[activity] = performed[0].object
+        asked = [activity for activity in asked if activity not in delta.fresh]
+    for chunk in _chunks(asked):
+        text = f"SELECT ?s ?o WHERE {{ ?s <{PERFORMED_BY}> ?o }}"
+        bound = bind_rows(text, ["s"], [[NamedNode(node[1:-1])] for node in chunk], wrap=store.wraps_values)
+        for row in select(store, bound).rows:
+            found.setdefault(term_text(row["s"]), row["o"])
+    return found
 
 
 def read_predicates(rules: list[ShapeRule]) -> frozenset[str] | None:
@@ -243,8 +289,14 @@ def _note_context(context: dict[str, object], predicate: str, value: object) -> 
         rank = TIMES.index(predicate)
         if rank < int(context.get("rank", len(TIMES))):  # type: ignore[call-overload]
             context["time"], context["rank"] = value, rank
-    elif predicate in ACTORS and "robot" not in context:
-        context["robot"] = value
+    elif predicate == PERFORMED_BY:
+        context.setdefault("performer", value)
+    elif predicate == ATTRIBUTED_TO:
+        context.setdefault("attributed", value)
+    elif predicate == GENERATED_BY:
+        context.setdefault("generated_by", value)
+    elif predicate == SENDER or (predicate == RDF_TYPE and getattr(value, "value", None) == MESSAGE):
+        context["said"] = True
 
 
 def _results(report: Graph) -> Iterator[ShapeResult]:
