@@ -12,10 +12,13 @@ from tests.support.histories import EX, HUMANS, ROBOTS, History, iri, term
 EMOML = "http://www.gsi.upm.es/ontologies/onyx/vocabularies/emotionml/ns#"
 
 
-def at(seconds: float) -> str:
+def at(seconds: float, offset_hours: int = 0) -> str:
+    """The instant `seconds` after 09:00 UTC, written in UTC or (`offset_hours`) in another zone's clock."""
     whole = int(seconds)
     fraction = f".{round((seconds - whole) * 1000):03d}" if seconds != whole else ""
-    return f'"2026-03-10T09:{whole // 60 % 60:02d}:{whole % 60:02d}{fraction}Z"^^{term("xsd:dateTime")}'
+    zone = f"+{offset_hours:02d}:00" if offset_hours else "Z"
+    clock = f"{9 + offset_hours:02d}:{whole // 60 % 60:02d}:{whole % 60:02d}{fraction}"
+    return f'"2026-03-10T{clock}{zone}"^^{term("xsd:dateTime")}'
 
 
 @dataclass
@@ -70,14 +73,16 @@ class RuleHistory(History):
         parts.append([f"{event} {t('rdf:type')} {t('schema:Event')} .", f"{event} {t('schema:about')} {human} ."])
         listening = [
             f"{listen} {t('rdf:type')} {t('segb:LoggedActivity')} .",
-            f"{listen} {t('segb:wasPerformedBy')} {robot} .",
-            f"{listen} {t('prov:startedAtTime')} {at(start + 1)} .",
             f"{heard} {t('rdf:type')} {t('schema:Message')} .",
             f"{heard} {t('rdf:type')} {t('oro:InitialMessage')} .",
             f"{heard} {t('schema:sender')} {human} .",
+            f"{heard} {t('prov:wasAttributedTo')} {human} .",  # as the PyPI client attributes a message
             f"{heard} {t('prov:wasGeneratedBy')} {listen} .",
         ]
         parts.append(listening)
+        # Which robot listened may come late: the robot of a finding about what it heard is that robot.
+        parts.append([f"{listen} {t('segb:wasPerformedBy')} {robot} ."])
+        parts.append([f"{listen} {t('prov:startedAtTime')} {at(start + 1)} ."])  # a late or missing time
         if rng.random() < 0.85:
             parts.append([f'{heard} {t("schema:text")} "said {n}"@en .'])  # a message may have no text
         if rng.random() < 0.75:  # answered (on time or late), else never
@@ -95,7 +100,9 @@ class RuleHistory(History):
                 ]
             )
             parts.append([f"{said} {t('prov:wasDerivedFrom')} {heard} ."])  # the link may come late
-            parts.append([f"{reply} {t('prov:startedAtTime')} {at(start + 1 + delay)} ."])
+            # A robot may write its local time: the same instant an hour ahead, in a zone of +01:00.
+            offset = rng.choice([0, 0, 1])
+            parts.append([f"{reply} {t('prov:startedAtTime')} {at(start + 1 + delay, offset)} ."])
             if rng.random() < 0.5:
                 model = iri("model", rng.choice(["llm", "bare"]))
                 parts.append([f"{reply} {t('segb:usedMLModel')} {model} ."])
