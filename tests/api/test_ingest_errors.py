@@ -10,7 +10,7 @@ import httpx
 import pytest
 
 from segb_server.backend.api.app import create_app
-from segb_server.backend.store.base import Store
+from segb_server.backend.store.base import Store, select
 from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.conftest import make_settings
 from tests.services.test_skolem import TWO_CYCLES
@@ -209,3 +209,17 @@ def test_two_different_cyclic_blank_structures_are_stored_whole_on_each_store(st
     assert again.json()["triples_new"] == 0
     exported = httpx.get(f"{store_server}/events", headers={"Accept": "application/n-triples"}, timeout=60).text
     assert len([line for line in exported.splitlines() if line.strip()]) == 18
+
+
+def test_a_document_that_starts_with_a_byte_order_mark_is_read_without_it(
+    small_limits_api: InProcess, memory_store: Store
+) -> None:
+    # Editors on Windows save UTF-8 with a byte order mark: it is no part of the document (RDF 1.1 Turtle, 6.2).
+    bom = "\ufeff"
+    raw = post(small_limits_api, content=(bom + GOOD.replace("ari", "tiago")).encode(),
+               headers={"Content-Type": "text/turtle"})  # fmt: skip
+    assert raw.status_code == 201, raw.text
+    wrapped = post(small_limits_api, json={"ttl_content": bom + GOOD.replace("ari", "pepper")})
+    assert wrapped.status_code == 201, wrapped.text
+    robots = select(memory_store, "SELECT ?robot WHERE { ?robot a <https://ex.org/Robot> }").rows
+    assert {row["robot"].value for row in robots} == {f"https://ex.org/{name}" for name in ("ari", "tiago", "pepper")}

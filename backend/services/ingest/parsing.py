@@ -11,6 +11,7 @@ from segb_server.backend.services.ingest.skolem import might_contain_blank_nodes
 from segb_server.backend.store.terms import term_text
 
 SYNTAX_NAMES = {RdfFormat.TURTLE: "Turtle", RdfFormat.N_TRIPLES: "N-Triples"}
+UTF8_BYTE_ORDER_MARK = b"\xef\xbb\xbf"
 
 
 def skolemized(data: bytes, quads: list[Quad], skolem_base: str) -> list[Quad]:
@@ -25,6 +26,7 @@ def parse_quads(data: bytes, rdf_format: RdfFormat, *, max_triples: int) -> list
     client's whole accumulated graph cheap. Relative IRIs are refused (no base IRI is assumed), rather
     than resolved against some server path as the reference did.
     """
+    data = data.removeprefix(UTF8_BYTE_ORDER_MARK)  # what some editors start a UTF-8 file with: not the document's
     try:
         quads = list(islice(parse(data, rdf_format), max_triples + 1))
     except SyntaxError as error:
