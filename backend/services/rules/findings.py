@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from datetime import UTC, datetime
 
+from segb_server.backend.services import direction_controls
 from segb_server.backend.services.rules.catalog import LISTED_COLUMNS, REQUIRED_COLUMNS, Rule
 from segb_server.backend.services.values import JsonValue
 
@@ -22,7 +23,7 @@ def finding(rule: Rule, row: dict[str, JsonValue]) -> Finding:
         "severity": rule.severity,
         "title": rule.title,
         "focus": row.get("focus"),
-        "message": row.get("message"),
+        "message": direction_controls.shown(message) if isinstance(message := row.get("message"), str) else message,
         "time": row.get("time"),
         "robot": row.get("robot"),
         "human": row.get("human"),

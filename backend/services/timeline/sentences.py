@@ -12,8 +12,9 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
+from segb_server.backend.services import direction_controls
 from segb_server.backend.services.explain.service import ACTIVITY_KINDS
 from segb_server.backend.services.graph.service import local_name
 from segb_server.backend.services.values import JsonValue
@@ -29,8 +30,10 @@ class Told:
 
 
 def tell(kind: str, rows: Rows) -> Told:
-    """The sentence of one event of `kind` from its rows (several when it has several targets, models, …)."""
-    return TELLERS[kind](rows)
+    """The sentence of one event of `kind` from its rows (several when it has several targets, models, …), a
+    robot's direction controls shown as marks (`direction_controls.py`)."""
+    told = TELLERS[kind](rows)
+    return replace(told, sentence=direction_controls.shown(told.sentence))
 
 
 # --- pieces ------------------------------------------------------------------------------------------------
