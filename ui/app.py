@@ -108,7 +108,7 @@ def _install_error_pages(app: FastAPI) -> None:
 
     async def refused_form(request: Request, error: Exception) -> Response:
         status = 403 if isinstance(error, CsrfRejected) else 400
-        return error_page(request, status, "Form refused", str(error))
+        return error_page(request, status, "Form refused", str(error), form_refused=True)
 
     async def unexpected(request: Request, error: Exception) -> Response:
         logger.exception("unhandled error on %s %s", request.method, request.url.path)

@@ -83,13 +83,14 @@ def current_nav(path: str) -> str | None:
     return max(owners, key=len, default=None)
 
 
-def error_page(request: Request, status_code: int, title: str, message: str) -> Response:
-    """An HTML error page, or `{"detail", "title", "status"}` for the page scripts' JSON requests."""
+def error_page(request: Request, status_code: int, title: str, message: str, *, form_refused: bool = False) -> Response:
+    """An HTML error page, or `{"detail", "title", "status"}` for the page scripts' JSON requests. `form_refused`:
+    a 403 for the form itself (its security token), not for the token's roles."""
     if "application/json" in request.headers.get("accept", ""):
         return JSONResponse({"detail": message, "title": title, "status": status_code}, status_code=status_code)
     # Where a sign-in should lead back to: the page that failed, when opening it again is harmless.
     back = None
     if request.method == "GET":
         back = request.url.path + (f"?{request.url.query}" if request.url.query else "")
-    context = {"title": title, "message": message, "status": status_code, "back": back}
+    context = {"title": title, "message": message, "status": status_code, "back": back, "form_refused": form_refused}
     return render(request, "error.html", context, status_code)

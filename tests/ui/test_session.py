@@ -68,6 +68,8 @@ def test_forms_without_the_csrf_token_are_refused(secured_stack: UiStack) -> Non
         assert forged.status_code == 403
         assert "security token" in forged.text
         assert "segb_token" not in forged.headers.get("set-cookie", "")
+        # A form refused is no question of roles: the page does not send its user to look at the token's.
+        assert "does not carry the role" not in forged.text
 
 
 def test_with_auth_off_the_page_says_so(ui_stack: UiStack) -> None:
