@@ -17,12 +17,14 @@ from urllib.parse import quote
 
 import httpx
 import pytest
+from semantic_log_generator import ActivityKind
 
 from segb_server.backend.api.app import create_app
 from tests.conftest import make_settings, virtuoso_store
 from tests.support.in_process import InProcess
 from tests.support.live_server import LiveServer
 from tests.support.people import INES_NAME, INES_SAYS, OTHERS_SAY, ROBOT_REPLIES, Visit, care_home, filler
+from tests.support.scenarios import at
 from tests.support.settle import settle
 from tests.support.virtuoso import VirtuosoProcess
 
@@ -59,12 +61,27 @@ def human_rows(url: str, visit: Visit) -> dict[tuple[str, str], list[dict]]:
     }
 
 
+def overhear(visit: Visit, text: str) -> None:
+    """TIAGo hears what she said without knowing who spoke: a shared event of no one, its observation and a
+    message without a sender, each holding her words verbatim (as the demo's TIAGo logs what it overhears)."""
+    tiago = visit.loggers["tiago"]
+    event = tiago.get_shared_event_uri(event_kind="human_utterance", observed_at=at(31), text=text, modality="speech")
+    listen = tiago.log_activity(
+        activity_id="listen_overheard", activity_kind=ActivityKind.LISTENING, related_shared_events=[event],
+        started_at=at(31),
+    )  # fmt: skip
+    tiago.log_message(text, message_id="overheard", language="en", generated_by_activity=listen)
+
+
 @pytest.fixture(scope="module")
 def erased(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Erased]:
     data_dir = tmp_path_factory.mktemp("erasure")
     with LiveServer(create_app(make_settings(store="oxigraph", data_dir=data_dir))) as server:
         visit = care_home()
         visit.publish_steps(server.url)
+        overhear(visit, INES_SAYS[1])
+        visit.publish(server.url, ("tiago",))
+        settle(server.url)
         # A robot resolving a shared context through the server (what HTTPSharedContextResolver calls): the
         # server's own state then quotes her.
         observations = [
@@ -262,6 +279,9 @@ def test_an_erasure_on_virtuoso_removes_her_triples_in_their_received_spelling(
         with LiveServer(create_app(make_settings(store="virtuoso", data_dir=tmp_path), store=store)) as server:
             visit = care_home()
             visit.publish_steps(server.url)
+            overhear(visit, INES_SAYS[1])  # her words, verbatim, in a message and a shared event of no one
+            visit.publish(server.url, ("tiago",))
+            settle(server.url)
             before = human_rows(server.url, visit)
             ines = str(visit.iris["ines"])
             answer = httpx.post(f"{server.url}/humans/erase", json={"iri": ines, "reason": "request"}, timeout=120)
@@ -290,6 +310,9 @@ def test_a_post_during_an_erasure_is_answered_within_its_timeout_and_kept(tmp_pa
     with LiveServer(create_app(settings)) as server:
         visit = care_home()
         visit.publish_steps(server.url)
+        overhear(visit, INES_SAYS[1])
+        visit.publish(server.url, ("tiago",))
+        settle(server.url)
         others = filler(75_000)
         headers = {"Content-Type": "application/n-triples"}
         # Applying it takes longer than the 1 s this server gives a post: a 503 saying it is kept, then applied.
