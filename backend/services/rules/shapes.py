@@ -34,7 +34,7 @@ from segb_server.backend.vocabulary import PERFORMED_BY, PREFIXES
 
 NODES_PER_QUERY = 300
 FOCUS_PER_RUN = 200
-PROV, SEGB = PREFIXES["prov"], PREFIXES["segb"]
+PROV = PREFIXES["prov"]
 # What a finding lists besides the shape's message, read from the focus node's own statements.
 TIMES = tuple(PROV + name for name in ("startedAtTime", "endedAtTime", "generatedAtTime"))
 # Its robot: the one that performed it; or the agent it is attributed to, unless it is something said (the PyPI
