@@ -12,7 +12,7 @@ from segb_server.backend.config import PACKAGE_ROOT
 from segb_server.backend.services.sparql.catalog import Catalog, CatalogQuery
 from segb_server.backend.services.upkeep.delta import Delta
 from segb_server.backend.services.upkeep.kept_queries.keys import KeyFinder
-from segb_server.backend.services.upkeep.kept_queries.plan import plan_report
+from segb_server.backend.services.upkeep.kept_queries.plan import ReportPlan, plan_report
 from segb_server.backend.store.oxigraph import OxigraphStore
 from segb_server.backend.vocabulary import PREFIXES
 
@@ -73,3 +73,30 @@ def test_a_filter_nested_in_an_exists_a_bind_holds_is_in_the_plan() -> None:
     typed = [Quad(sender, RDF_TYPE, NamedNode(PREFIXES["oro"] + "Human"))]
     assert KeyFinder(plan, "message").units(Delta.of(typed), store) == {"<https://example.org/m/1>"}
     store.close()
+
+
+def _plan_with(condition: str) -> ReportPlan:
+    return plan_report(
+        CatalogQuery(
+            "reports/excluding",
+            "Excluding",
+            "",
+            "PREFIX schema: <http://schema.org/> PREFIX oro: <http://kb.openrobots.org#>\n# key: ?message\n"
+            f"SELECT ?message ?robot WHERE {{ ?message a schema:Message ; schema:sender ?robot . {condition} }}",
+        )
+    )
+
+
+def test_only_a_not_exists_of_patterns_about_the_key_alone_excludes_a_key() -> None:
+    """A top-level NOT EXISTS whose patterns match among a batch's triples from a key it introduced rules out that
+    key's rows — only when the body is its patterns alone and shares nothing but the key with the query."""
+    plain = _plan_with("FILTER NOT EXISTS { ?message a oro:InitialMessage }")
+    assert [[pattern.sparql() for pattern in body] for body in plain.exclusions_of("?message")] == [
+        ["?message <http://www.w3.org/1999/02/22-rdf-syntax-ns#type> <http://kb.openrobots.org#InitialMessage> ."]
+    ]
+    # A condition inside the body: its patterns may match where the body does not.
+    conditioned = _plan_with("FILTER NOT EXISTS { ?message schema:recipient ?to FILTER (?to != <https://e.org/x>) }")
+    assert conditioned.exclusions_of("?message") == []
+    # A variable the row binds too: whether the body matches depends on the row, not on the key alone.
+    shared = _plan_with("FILTER NOT EXISTS { ?message schema:recipient ?robot }")
+    assert shared.exclusions_of("?message") == []

@@ -349,7 +349,11 @@ class _Walker:
             if switched is None and _is_not_exists(conjunct) and self.parent[group] is None:
                 body = self.new_group(group)
                 self._graph(conjunct["graph"], body)  # type: ignore[index]
-                self._negated.append(body)
+                # A condition in the body (`FILTER (?x != …)`) is not among its patterns, which may then match
+                # where the body does not: such a body excludes nothing.
+                written: CompValue = conjunct["graph"]  # type: ignore[index]
+                if not _has_filter(self._written.get(_triples_of(written), written)):
+                    self._negated.append(body)
                 continue
             if switched is None:
                 self._expression(conjunct, group)
@@ -445,6 +449,10 @@ def _iri_list(expression: object) -> tuple[str, frozenset[str]] | None:
     if not all(isinstance(other, URIRef) for other in others):
         return None
     return f"?{variable}", frozenset(other.n3() for other in others)
+
+
+def _has_filter(graph: CompValue) -> bool:
+    return any(part.name == "Filter" for part in graph.get("part") or [])
 
 
 def _is_not_exists(expression: object) -> bool:
