@@ -165,27 +165,19 @@ def test_scoped_tokens_write_only_about_their_namespaces_with_the_pypi_client(tm
                 '<https://example.org/segb/robots/ari/v1/robot_ari> <http://schema.org/name> "evil" .'
             )
         # Its own subjects crediting another robot with an act, words or a state: refused too, whoever's subject.
-        for credit in ("segb/ns#wasPerformedBy", "prov#wasAttributedTo", "prov#wasAssociatedWith"):
-            namespace = "http://www.gsi.upm.es/ontologies/" if credit.startswith("segb") else "http://www.w3.org/ns/"
+        credits = ("http://www.gsi.upm.es/ontologies/segb/ns#wasPerformedBy", "http://www.w3.org/ns/prov#wasAttributedTo",
+                   "http://www.w3.org/ns/prov#wasAssociatedWith", "http://schema.org/sender")  # fmt: skip
+        for credit in credits:
             impersonating = server.post(
                 "/ttl",
                 json={
-                    "ttl_content": f"<https://example.org/segb/robots/tiago/v1/reply> <{namespace}{credit}> "
+                    "ttl_content": f"<https://example.org/segb/robots/tiago/v1/reply> <{credit}> "
                     "<https://example.org/segb/robots/ari/v1/robot_ari> ."
                 },
                 headers={"Authorization": f"Bearer {tiago}"},
             )
             assert impersonating.status_code == 403, (credit, impersonating.text)
             assert "credits <https://example.org/segb/robots/ari/v1/robot_ari>" in impersonating.json()["detail"]
-        said = server.post(
-            "/ttl",
-            json={
-                "ttl_content": "<https://example.org/segb/robots/tiago/v1/reply> <http://schema.org/sender> "
-                "<https://example.org/segb/robots/ari/v1/robot_ari> ."
-            },
-            headers={"Authorization": f"Bearer {tiago}"},
-        )
-        assert said.status_code == 403, said.text
         # What it heard from a person of the shared namespace is its to log.
         heard = publisher_for(server.client, token=tiago).publish_turtle(
             "<https://example.org/segb/robots/tiago/v1/m1> <http://schema.org/sender> "
