@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import shutil
 import sqlite3
+import time
 from collections.abc import Sequence
 from contextlib import AbstractContextManager, nullcontext
 from pathlib import Path
@@ -16,6 +17,23 @@ TYPES = {"serial": "INTEGER PRIMARY KEY", "blob": "BLOB", "real": "REAL", "witho
 # largest size one transaction ever made it, for as long as the server runs: a view built at a million triples
 # left 78 MiB beside the graph index's 77. A log that fits one ordinary batch is reused without growing.
 WAL_KEPT_BYTES = 4 * 2**20
+WAL_SWITCH_SECONDS = 30.0  # how long opening a file waits for another process's write to let it switch to WAL
+WAL_SWITCH_PAUSE = 0.01
+
+
+def use_wal(connection: sqlite3.Connection) -> None:
+    """Put the connection's file in WAL mode. SQLite refuses the switch ("database is locked") at once, without
+    its busy timeout, while another connection writes to a file still in rollback mode: API workers and the
+    views' process opening a fresh data directory together. Tried again until that write is done."""
+    deadline = time.monotonic() + WAL_SWITCH_SECONDS
+    while True:
+        try:
+            connection.execute("PRAGMA journal_mode=WAL")
+            return
+        except sqlite3.OperationalError as error:
+            if error.sqlite_errorcode != sqlite3.SQLITE_BUSY or time.monotonic() > deadline:
+                raise
+            time.sleep(WAL_SWITCH_PAUSE)
 
 
 def keep_wal_small(connection: sqlite3.Connection) -> None:
@@ -56,7 +74,7 @@ class SqliteDatabase(Database):
         elif path is not None:
             # WAL: a commit is durable across a crash of the server process. NORMAL sync leaves the newest
             # commits to the operating system's cache on a power cut; FULL syncs every commit (slower).
-            self._connection.execute("PRAGMA journal_mode=WAL")
+            use_wal(self._connection)
             keep_wal_small(self._connection)
             self._connection.execute(f"PRAGMA synchronous={'FULL' if sync_full else 'NORMAL'}")
             # Freed pages are overwritten: content an erasure removed must not linger in the file.

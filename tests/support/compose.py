@@ -230,13 +230,24 @@ class NativeProcess:
     def output(self) -> str:
         return self.log.read_text(errors="replace")
 
+    def excerpt(self) -> str:
+        """What a failure shows of the log: its first error or traceback (what went wrong usually comes before
+        the shutdown's lines), then its end."""
+        output = self.output()
+        found = (output.find(marker) for marker in ("Traceback", " ERROR ", "ERROR:"))
+        first = min((at for at in found if at >= 0), default=-1)
+        tail = output[-3000:]
+        if first < 0 or first >= len(output) - 3000:
+            return tail
+        return f"{output[max(0, first - 500) : first + 5000]}\n[…]\n{tail}"
+
     def wait_for(self, url: str, status: int = 200, timeout: float = 60) -> httpx.Response:
         """Poll `url` until it answers `status`; fail with the process's log if it never does."""
         deadline = time.monotonic() + timeout
         last: object = None
         while time.monotonic() < deadline:
             if self._process.poll() is not None:
-                raise RuntimeError(f"{self.name} exited with {self._process.returncode}:\n{self.output()[-3000:]}")
+                raise RuntimeError(f"{self.name} exited with {self._process.returncode}:\n{self.excerpt()}")
             try:
                 response = httpx.get(url, timeout=2)
                 if response.status_code == status:
@@ -245,7 +256,7 @@ class NativeProcess:
             except httpx.HTTPError as error:
                 last = error
             time.sleep(0.2)
-        raise RuntimeError(f"{url} did not answer {status} in {timeout} s (last: {last}):\n{self.output()[-3000:]}")
+        raise RuntimeError(f"{url} did not answer {status} in {timeout} s (last: {last}):\n{self.excerpt()}")
 
     def wait_for_output(self, text: str, count: int = 1, timeout: float = 60) -> str:
         """Wait until the log holds `text` at least `count` times; return the log."""
@@ -257,7 +268,7 @@ class NativeProcess:
             if self._process.poll() is not None:
                 break
             time.sleep(0.1)
-        raise RuntimeError(f"{self.name} did not log {text!r} {count} times in {timeout} s:\n{self.output()[-3000:]}")
+        raise RuntimeError(f"{self.name} did not log {text!r} {count} times in {timeout} s:\n{self.excerpt()}")
 
     def stop(self) -> int:
         if self._process.poll() is None:

@@ -17,7 +17,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from types import TracebackType
 
-from segb_server.backend.state.sqlite import keep_wal_small
+from segb_server.backend.state.sqlite import keep_wal_small, use_wal
 
 
 class ViewDatabase:
@@ -33,7 +33,7 @@ class ViewDatabase:
         self._rollback_listeners: list[Callable[[], None]] = []
         setup = self._connect()
         try:
-            setup.execute("PRAGMA journal_mode=WAL")
+            use_wal(setup)
             for statement in schema:
                 setup.execute(statement)
         finally:
