@@ -33,6 +33,9 @@ ROOT = Path(__file__).resolve().parents[1]
 FIXTURES = Path(__file__).resolve().parent / "fixtures"  # Turtle from the real robot client (see its README)
 STORE_KINDS = ["oxigraph", pytest.param("virtuoso", marks=pytest.mark.virtuoso)]
 
+# A test during which the shared Virtuoso stops is run once more on a Virtuoso started again (see the module).
+pytest_plugins = ("tests.support.shared_virtuoso",)
+
 
 # Property tests keep no example database, and hypothesis's own files go to a temporary directory: the suite
 # writes nothing outside temporary directories.

@@ -107,8 +107,7 @@ class VirtuosoProcess:
         deadline = time.monotonic() + 60
         while time.monotonic() < deadline:
             if self._process.poll() is not None:
-                log = (self.directory / "virtuoso.log").read_text(errors="replace")[-2000:]
-                raise RuntimeError(f"virtuoso-t exited with {self._process.returncode}:\n{log}")
+                raise RuntimeError(f"virtuoso-t exited with {self._process.returncode}:\n{self.log_tail(2000)}")
             try:
                 response = httpx.get(f"{self.base_url}/sparql", params={"query": "ASK {}"}, timeout=1)
                 if response.status_code == 200:
@@ -145,6 +144,16 @@ class VirtuosoProcess:
                     headers={"Content-Type": "application/sparql-update; charset=utf-8"},
                 )
                 response.raise_for_status()
+
+    def exit_code(self) -> int | None:
+        """The code the server exited with (negative: the signal that ended it), or None while it runs or was
+        never started."""
+        return None if self._process is None else self._process.poll()
+
+    def log_tail(self, characters: int = 4000) -> str:
+        """The end of the server's own log, which names why it stopped (a GPF, a full disk, a failed checkpoint)."""
+        log = self.directory / "virtuoso.log"
+        return log.read_text(errors="replace")[-characters:] if log.exists() else "(no virtuoso.log)"
 
     def kill(self) -> None:
         """SIGKILL, as a crash would: Virtuoso recovers from its transaction log at the next start."""
