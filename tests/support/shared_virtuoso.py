@@ -9,7 +9,7 @@ Registered by tests/conftest.py."""
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import pytest
 from _pytest.runner import runtestprotocol
@@ -62,7 +62,7 @@ def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> 
     if stop is not None and reports[0].passed and len(_stops) < MOST_RESTARTS:
         del item.stash[_STOPPED]
         failed = [f"{report.when}: {report.longreprtext}" for report in reports if report.failed]
-        _stops.append(Stop(stop.test, stop.exit_code, stop.log, "\n".join(failed)))
+        _stops.append(replace(stop, outcome="\n".join(failed)))
         reports = runtestprotocol(item, nextitem=nextitem, log=False)
     for report in reports:
         item.ihook.pytest_runtest_logreport(report=report)
