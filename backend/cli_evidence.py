@@ -33,10 +33,21 @@ def add_commands(commands: argparse._SubParsersAction, store_options: StoreOptio
     key = commands.add_parser("evidence-key", help="print the server's public key for evidence bundles (PEM)")
     key.add_argument("--data-dir", type=Path, help="the server's directory (DATA_DIR; default ./data)")
 
-    check = commands.add_parser("verify-evidence", help="check an evidence bundle offline; exit 1 if anything fails")
+    check = commands.add_parser(
+        "verify-evidence",
+        help="check an evidence bundle offline: exit 0 verified with the server's key, 1 not verified, 3 intact but "
+        "signed by a key not given with --public-key",
+    )
     check.add_argument("bundle", type=Path, metavar="BUNDLE", help="the .zip written by segb evidence or GET /evidence")
     check.add_argument(
         "--public-key", type=Path, metavar="PEM", help="the server's public key (without it: the key the bundle holds)"
+    )
+    check.add_argument(
+        "--max-size",
+        type=_mebibytes,
+        default=512,
+        metavar="MIB",
+        help="the most the bundle's files may inflate to in all, in MiB (default 512)",
     )
 
 
@@ -62,7 +73,11 @@ def evidence_key(args: argparse.Namespace, settings: Settings) -> int:
     return 0
 
 
+VERIFIED, NOT_VERIFIED, UNTRUSTED_KEY = 0, 1, 3  # 2: a usage error, as for every command
+
+
 def verify_evidence(args: argparse.Namespace) -> int:
+    """Every fact, the problems (when more than one), then one verdict line; its exit status says which."""
     from segb_server.backend.services.evidence.verify import verify_bundle
 
     try:
@@ -70,10 +85,33 @@ def verify_evidence(args: argparse.Namespace) -> int:
     except OSError as error:
         print(f"segb: error: cannot read the public key: {error}", file=sys.stderr)
         return 2
-    report = verify_bundle(args.bundle, expected)
+    report = verify_bundle(args.bundle, expected, args.max_size << 20)
     for fact in report.facts:
-        print(f"  {fact}")
-    for problem in report.problems:
-        print(f"FAILED: {problem}")
-    print(f"{args.bundle}: {'verified' if report.valid else 'NOT verified'}")
-    return 0 if report.valid else 1
+        print(f"  {_shown(fact)}")
+    if len(report.problems) > 1:
+        for problem in report.problems:
+            print(f"FAILED: {_shown(problem)}")
+    if report.problems:
+        more = f" (and {len(report.problems) - 1} more problems, above)" if len(report.problems) > 1 else ""
+        print(f"{args.bundle}: NOT verified: {_shown(report.problems[0])}{more}")
+        return NOT_VERIFIED
+    if not report.trusted:
+        print(
+            f"{args.bundle}: intact, but signed by an untrusted key: {report.signer}, the key the bundle carries; "
+            "pass the server's key with --public-key to verify it"
+        )
+        return UNTRUSTED_KEY
+    print(f"{args.bundle}: verified")
+    return VERIFIED
+
+
+def _shown(text: str) -> str:
+    """Text from a bundle (an erasure's reason, a triple) with control characters escaped: an escape sequence in
+    it could otherwise rewrite the terminal's lines, the verdict among them."""
+    return "".join(char if char.isprintable() else char.encode("unicode_escape").decode() for char in text)
+
+
+def _mebibytes(text: str) -> int:
+    if not text.isdigit() or int(text) < 1:
+        raise argparse.ArgumentTypeError(f"not a whole number of MiB: {text!r}")
+    return int(text)

@@ -198,8 +198,10 @@ def test_a_re_signed_bundle_passes_only_against_its_own_key(served: Served, tmp_
     assert verify(served, files, tmp_path)[0] == 1
     bundle = written(files, tmp_path / "resigned.zip")
     unanchored = segb("verify-evidence", str(bundle))
-    # Without the server's key the signature checks against the bundle's own key, and the output says so.
-    assert unanchored.returncode == 0 and "compare it with the server's published key" in unanchored.stdout
+    # Without the server's key the signature checks against the bundle's own key: intact, and no more than that
+    # (exit 3, not 0: a script cannot take it for verified).
+    assert unanchored.returncode == 3 and "compare it with the server's published key" in unanchored.stdout
+    assert "signed by an untrusted key" in unanchored.stdout
 
 
 def test_after_an_erasure_a_bundle_verifies_and_says_what_was_removed(served: Served, tmp_path: Path) -> None:
