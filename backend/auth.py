@@ -30,6 +30,7 @@ GRANTS: dict[str, frozenset[str]] = {
 ANONYMOUS_USER = "anonymous_user"
 MIN_LIFETIME_SECONDS = 60
 MAX_LIFETIME_SECONDS = 30 * 24 * 3600
+LAST_EXPIRY = 253402300799  # 9999-12-31T23:59:59Z, the last second a date can show
 SCOPE_SCHEMES = ("http://", "https://", "urn:")
 
 
@@ -100,14 +101,22 @@ def decode_token(token: str, secret: str) -> Principal:
     scopes = claims.get("scopes", [])
     if not isinstance(scopes, list) or not all(_valid_scope(scope) for scope in scopes):
         raise AuthenticationFailed("Could not validate credentials. Invalid Token: scopes claim is invalid")
-    expires = claims.get("exp")
     return Principal(
         username.strip(),
         frozenset(roles),
         authenticated=True,
         scopes=tuple(scopes),
-        expires_at=expires if isinstance(expires, int) else None,
+        expires_at=_expiry(claims["exp"]),
     )
+
+
+def _expiry(exp: object) -> int:
+    """The second from which the token counts as expired. `exp` is a NumericDate (RFC 7519: seconds, possibly with
+    a fraction); the JWT library has already refused a past one, reading it as `int(exp)`, which also takes a
+    string of digits: here only a number is a time, and only one a clock reaches (a stream waits until it)."""
+    if isinstance(exp, bool) or not isinstance(exp, int | float) or not 0 < exp <= LAST_EXPIRY:
+        raise AuthenticationFailed("Could not validate credentials. Invalid Token: exp claim is not a time")
+    return int(exp)
 
 
 def authorize(principal: Principal, roles: tuple[str, ...]) -> None:

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import importlib.metadata
+import os
 import sys
 from collections.abc import Iterator, Sequence
 from pathlib import Path
@@ -23,13 +25,21 @@ from segb_server.backend.store.base import StoreError
 
 if TYPE_CHECKING:  # the services are imported by the commands that need them, not whenever the CLI starts
     from segb_server.backend.services.container import Services
+    from segb_server.backend.services.rules.catalog import RuleCatalog
+    from segb_server.backend.services.sparql.catalog import Catalog, CatalogQuery
 
 IMPORT_USER = "segb-import"  # the receipts of `segb import` name this user
+
+
+# Files a command creates (the journal, SQLite state, the views, the store, logs, keys, exports) hold people's
+# data: only the server's user may read them (600, folders 700); the processes it starts inherit this.
+PRIVATE_FILES = 0o077
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = _parser()
     args = parser.parse_args(argv)
+    previous = os.umask(PRIVATE_FILES)
     try:
         return args.handler(args)
     except ValidationError as error:
@@ -38,6 +48,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _fail(str(error))
     except KeyboardInterrupt:
         return 130
+    finally:
+        os.umask(previous)  # a caller in this process (a test calling main) keeps its own
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -46,6 +58,7 @@ def _parser() -> argparse.ArgumentParser:
         description="SEGB server: semantic robot logs, stored and audited. Options left out come from the "
         "environment variable named in their help, then `.env`, then the default shown.",
     )
+    parser.add_argument("--version", action="version", version=f"segb {importlib.metadata.version('segb-server')}")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     serve = commands.add_parser("serve", help="run the API (default :5000) and the web UI (default :8080)")
@@ -135,14 +148,26 @@ def _parser() -> argparse.ArgumentParser:
     check.set_defaults(handler=_check)
 
     upkeep = commands.add_parser(
-        "upkeep", help="tell how a report's rows are kept current as robots write (or why it is evaluated in full)"
+        "upkeep",
+        help="tell how each kept view (a report's rows, a timeline kind's, a rule's findings, the graph index) is kept "
+        "current as robots write; with --diff, compare a view's kept rows with its query evaluated in full",
     )
     upkeep.add_argument(
         "report",
         nargs="?",
-        help="a report's name, e.g. conversations, or a timeline kind's, e.g. timeline/message (default: every report)",
+        help="a view: a report's name (conversations), a timeline kind's (timeline/message) or a rule's "
+        "(rules/unanswered-message); default: every kept view",
+    )
+    upkeep.add_argument("key", nargs="?", help="with --diff: only the rows of this key (e.g. a message's IRI)")
+    upkeep.add_argument(
+        "--diff",
+        action="store_true",
+        help="compare the view's kept rows (caught up with the journal) with its query evaluated in full on the "
+        "store of DATA_DIR (exit code 1 when they differ; the server must be stopped, as for `segb rebuild`)",
     )
     upkeep.add_argument("--sparql-dir", type=Path, help="directory of the .rq files (SPARQL_DIR)")
+    upkeep.add_argument("--rules-dir", type=Path, help="folder of the audit rules (RULES_DIR)")
+    _store_options(upkeep)
     upkeep.set_defaults(handler=_upkeep)
 
     demo = commands.add_parser("demo", help="publish the demo dataset (robots ARI and TIAGo) to a running server")
@@ -307,23 +332,68 @@ def _rebuild(args: argparse.Namespace) -> int:
 
 
 def _upkeep(args: argparse.Namespace) -> int:
-    from segb_server.backend.services.reports.service import FOLDER
+    from segb_server.backend.services.rules.catalog import RuleCatalog
     from segb_server.backend.services.sparql.catalog import Catalog
-    from segb_server.backend.services.timeline.kinds import FOLDER as TIMELINE_FOLDER
-    from segb_server.backend.services.upkeep.kept_queries.describe import describe
+    from segb_server.backend.services.upkeep.kept_queries.describe import describe, describe_others
 
-    catalog = Catalog(_settings(args, "sparql_dir").sparql_dir)
-    reports = catalog.under(FOLDER)
-    if args.report is not None:
-        # A report by its name; the timeline's kinds, kept alike, by theirs (`timeline/message`).
-        wanted = args.report if "/" in args.report else f"{FOLDER}/{args.report}"
-        kept = [*reports, *catalog.under(TIMELINE_FOLDER)]
-        reports = [query for query in kept if query.name == wanted]
-        if not reports:
-            names = ", ".join(query.name.removeprefix(f"{FOLDER}/") for query in kept)
-            return _fail(f"no report named {args.report!r}; reports: {names}")
-    print("\n\n".join("\n".join(describe(query)) for query in reports))
+    settings = _settings(args, "sparql_dir", "rules_dir")
+    views = _kept_queries(Catalog(settings.sparql_dir), RuleCatalog(settings.rules_dir))
+    if args.report is None:
+        if args.diff:
+            return _fail("--diff compares one view: name it (e.g. `segb upkeep --diff conversations`)")
+        print("\n\n".join("\n".join(lines) for lines in [*(describe(query) for query in views), describe_others()]))
+        return 0
+    # A report by its name; the timeline's kinds and the rules, kept alike, by theirs (`timeline/message`).
+    wanted = args.report if "/" in args.report else f"reports/{args.report}"
+    found = [query for query in views if query.name == wanted]
+    if not found:
+        names = ", ".join(query.name.removeprefix("reports/") for query in views)
+        return _fail(f"no kept view named {args.report!r}; views: {names}")
+    if args.diff:
+        return _upkeep_diff(settings, found[0], args.key)
+    if args.key is not None:
+        return _fail("a KEY is for --diff")
+    print("\n".join(describe(found[0])))
     return 0
+
+
+def _kept_queries(catalog: Catalog, rules: RuleCatalog) -> list[CatalogQuery]:
+    """Every query kept as rows: the reports, the timeline's kinds and the SPARQL rules, in that order."""
+    from segb_server.backend.services.reports.service import FOLDER
+    from segb_server.backend.services.timeline.kinds import FOLDER as TIMELINE_FOLDER
+
+    sparql_rules = [rule.query for rule in rules.sparql() if rule.query is not None]
+    return [*catalog.under(FOLDER), *catalog.under(TIMELINE_FOLDER), *sparql_rules]
+
+
+def _upkeep_diff(settings: Settings, query: CatalogQuery, key: str | None) -> int:
+    from segb_server.backend.services.upkeep.kept_queries.diff import NotKept, diff_view, told
+
+    with _services(settings) as services:
+        writes = services.writes
+        if not writes.apply_leadership.try_acquire():
+            return _fail(
+                f"a server is running on this journal (it holds {writes.apply_leadership.where}): stop it first"
+            )
+        services.start()  # apply what the journal holds, and catch the views up with it
+        writes.apply_now()
+        through = writes.applied
+        print(f"catching the views up with journal entry {through}…", file=sys.stderr)
+        if not writes.wait_viewed(through, timeout=3600):
+            return _fail(f"the views did not catch up with entry {through} within an hour")
+        kept = {
+            "reports": services.reports.kept_queries(),
+            "timeline": services.timeline_rows,
+            "rules": services.findings.kept,
+        }[query.name.split("/", 1)[0]]
+        if kept is None:
+            return _fail("the views are not kept here (KEEP_VIEWS=false): nothing to compare")
+        try:
+            difference = diff_view(kept, services.store, query, key)
+        except NotKept as reason:
+            return _fail(str(reason))
+    print("\n".join(told(difference)))
+    return 0 if difference.same else 1
 
 
 def _copy_state(args: argparse.Namespace) -> int:

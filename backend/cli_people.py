@@ -24,11 +24,16 @@ def add_erase(commands: argparse._SubParsersAction, store_options: Callable[[arg
         "erase", help="erase one person everywhere the server keeps data (their words, emotions read on them, …)"
     )
     store_options(erase)
-    erase.add_argument("--human", required=True, metavar="IRI", help="the person's IRI, as the robots logged it")
+    erase.add_argument("iri", nargs="?", metavar="IRI", help="the person's IRI, as the robots logged it")
+    erase.add_argument("--human", metavar="IRI", help="the same, as an option")
     erase.add_argument(
-        "--reason", required=True, help="why (kept in the ledger for good with the erasure: do not name the person)"
-    )
+        "--reason", help="why (kept in the ledger for good with the erasure: do not name the person); required "
+        "unless --dry-run"
+    )  # fmt: skip
     erase.add_argument("--by", help="who erases, as the ledger records it (default: the system user)")
+    erase.add_argument(
+        "--dry-run", action="store_true", help="only list what would be erased, counted by kind; nothing is written"
+    )
 
 
 def add_retention(
@@ -74,7 +79,19 @@ def retention(args: argparse.Namespace, settings: Settings, services_of: Service
 def erase(args: argparse.Namespace, settings: Settings, services_of: ServicesOf) -> int:
     from segb_server.backend.services.sparql.catalog import Parameter, to_term
 
-    human = to_term(Parameter("human", "iri"), args.human).value
+    given = [iri for iri in (args.iri, args.human) if iri]
+    if len(given) != 1 or (args.reason is None and not args.dry_run):
+        print("segb: error: give the person's IRI once (IRI or --human IRI), and --reason unless --dry-run",
+              file=sys.stderr)  # fmt: skip
+        return 2
+    human = to_term(Parameter("human", "iri"), given[0]).value
+    if args.dry_run:
+        with services_of(settings) as services:  # not started: a dry run reads the store and writes nothing
+            preview = services.erasure.preview(human)
+        kinds = ", ".join(f"{kind} {count}" for kind, count in preview.kinds.items())
+        print(f"dry run: would erase {preview.resources} resources ({kinds}), {preview.triples} triples in the "
+              f"store; left alone: {preview.left_out}; nothing was written")  # fmt: skip
+        return 0
     actor = args.by or f"{getpass.getuser()} (segb erase)"
     with services_of(settings) as services:
         services.start()  # the applier and the views' keeper: the store and the views follow the erasure

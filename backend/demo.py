@@ -185,7 +185,7 @@ def _run_missions(resolver: Resolver) -> list[EmotionMirrorMission]:
 
     # The mission attends one person at a time; TIAGo now turns to Carlos.
     tiago.human = tiago.logger.register_human("carlos", first_name="Carlos")
-    tiago.on_face_expression("angry", CARLOS_AT, confidence=0.88)
+    tiago.on_face_expression("angry", CARLOS_AT, confidence=0.79, intensity=0.88)
     question = tiago.on_user_utterance("Where is the pharmacy? I have been waiting for ages.", CARLOS_AT + _s(1))
     tiago.respond(question, CARLOS_AT + _s(2.5))
     tiago.logger.log_robot_state(

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import contextvars
 import errno
 import ipaddress
 import logging
@@ -23,6 +24,7 @@ import signal
 import socket
 import tempfile
 from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import uvicorn
@@ -178,11 +180,13 @@ def serve(settings: Settings, *, api: bool, ui: bool, demo: bool, listening: Cal
     if ui:
         configs.append(_ui_config(settings))
     tune_collector()
+    servers = [
+        _NamedServer(listener.what, _QuietServer(config), sock)
+        for listener, config, sock in zip(listeners, configs, sockets, strict=True)
+    ]
     # uvicorn's own choice of loop (uvloop when installed), which `asyncio.run` would bypass.
     with asyncio.Runner(loop_factory=configs[0].get_loop_factory()) as runner:
-        runner.run(
-            _serve_together([(_QuietServer(config), sock) for config, sock in zip(configs, sockets, strict=True)])
-        )
+        runner.run(_serve_together(servers))
 
 
 def serve_api_workers(settings: Settings, *, with_ui: bool, listening: Callable[[], None] = _nothing) -> None:
@@ -251,13 +255,56 @@ class _QuietServer(uvicorn.Server):
         yield
 
 
-async def _serve_together(servers: list[tuple[uvicorn.Server, socket.socket]]) -> None:
+@dataclass(frozen=True)
+class _NamedServer:
+    name: str  # API or UI, as the listeners call them
+    server: uvicorn.Server
+    sock: socket.socket
+
+
+# The server whose task logs a record (each server is served in a task of its own, which copies the context).
+_SERVING: contextvars.ContextVar[str] = contextvars.ContextVar("serving")
+_PROCESS_LINES = ("Started server process", "Finished server process")
+
+
+class _OneProcessTwoServers(logging.Filter):
+    """Each uvicorn server logs the process's start and end, and its own startup and shutdown, in the same words:
+    with the API and the UI in one process every line came twice. The process's lines are kept once (the first
+    server's), and the others say which server they are about."""
+
+    def __init__(self, first: str) -> None:
+        super().__init__()
+        self.first = first
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        name = _SERVING.get(None)
+        if name is None:
+            return True
+        if str(record.msg).startswith(_PROCESS_LINES):
+            return name == self.first
+        record.msg = f"{name}: {record.msg}"
+        record.__dict__.pop("color_message", None)  # uvicorn's coloured copy of the message, without the name
+        return True
+
+
+async def _serve_together(servers: list[_NamedServer]) -> None:
     loop = asyncio.get_running_loop()
 
     def stop() -> None:
-        for server, _ in servers:
-            server.should_exit = True
+        for named in servers:
+            named.server.should_exit = True
+
+    async def serve(named: _NamedServer) -> None:
+        _SERVING.set(named.name)
+        await named.server.serve(sockets=[named.sock])
 
     for signum in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(signum, stop)
-    await asyncio.gather(*(server.serve(sockets=[sock]) for server, sock in servers))
+    uvicorn_lines = logging.getLogger("uvicorn.error")
+    named_lines = _OneProcessTwoServers(servers[0].name)
+    if len(servers) > 1:
+        uvicorn_lines.addFilter(named_lines)
+    try:
+        await asyncio.gather(*(serve(named) for named in servers))
+    finally:
+        uvicorn_lines.removeFilter(named_lines)

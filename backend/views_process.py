@@ -160,17 +160,20 @@ class ViewsProcess:
         self._thread.start()
 
     def stop(self) -> None:
-        """Ask the views' process to finish its batch and exit (killed after STOP_SECONDS)."""
+        """Ask the views' process to finish its batch and exit (killed after STOP_SECONDS). Only the supervising
+        thread reaps it: a second thread joining the same process may find it reaped already by the first, take
+        it for alive, and report a kill that never was."""
         self._stopping.set()
         with self._lock:
             process = self.process
-        if process is not None and process.is_alive():
-            process.terminate()  # SIGTERM: the batch under way is finished and kept
-            process.join(STOP_SECONDS)
-            if process.is_alive():
-                logger.warning("the views' process did not stop within %g s; killed", STOP_SECONDS)
+        if process is not None:
+            process.terminate()  # SIGTERM: the batch under way is finished and kept (nothing, once it has exited)
+            # Its sentinel is readable once it has exited, whoever reaps it.
+            if not multiprocessing.connection.wait([process.sentinel], STOP_SECONDS):
+                logger.warning(
+                    "the views' process (pid %s) did not stop within %g s; killed", process.pid, STOP_SECONDS
+                )
                 process.kill()
-                process.join(5)
         if self._thread is not None:
             self._thread.join(timeout=5)
 

@@ -77,9 +77,13 @@ def _iri(curie: str) -> str:
     return PREFIXES[prefix] + local
 
 
+# What is a human and what is a robot: the one rule every page, report, audit rule and erasure reads (the SPARQL
+# of `%human(?x)` and `%robot(?x)` in backend/reading.py is made from these). An agent is either.
 PERSON_CLASSES = frozenset({_iri("oro:Human"), _iri("foaf:Person"), _iri("prov:Person")})
+ROBOT_CLASSES = frozenset({_iri("oro:Robot")})
+AGENT_CLASSES = PERSON_CLASSES | ROBOT_CLASSES
 _CLASSES: list[tuple[Kind, frozenset[str]]] = [
-    ("robot", frozenset({_iri("oro:Robot")})),
+    ("robot", ROBOT_CLASSES),
     ("human", PERSON_CLASSES),
     ("message", frozenset({_iri("schema:Message")})),
     ("emotion", frozenset({_iri("onyx:Emotion"), _iri("amor:EmotionAnnotation"), _iri("oa:Annotation")})),

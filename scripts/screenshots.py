@@ -28,6 +28,7 @@ SCALE = 0.75  # pictures of 960x600 pixels: small files, text still legible
 # (file name, path, what to do on the page before the picture)
 PAGES = [
     ("reports", "/reports", None),
+    ("report-emotion-timeline", "/reports/emotion-timeline", None),
     ("report-ml-usage", "/reports/ml-usage", None),
     ("report-robot-states", "/reports/robot-states", None),
     ("timeline", "/timeline?robot={robot}", "timeline"),
@@ -76,6 +77,8 @@ def main() -> int:
 def prepare(page: Page, action: str | None) -> None:
     if action == "graph":
         page.wait_for_selector("#graph[data-ready=true]", timeout=60_000)
+        # The drawing whole, from its toolbar down: it starts below the filters, past the window's bottom.
+        page.evaluate("document.querySelector('.graph-toolbar').scrollIntoView()")
         page.wait_for_timeout(300)
     elif action == "timeline":
         page.wait_for_selector(".tl-row", timeout=60_000)

@@ -1,5 +1,6 @@
 """The import direction the layout promises: API routes → services → store adapters, the UI a client of the
-API over HTTP, and shared modules (vocabulary, auth, config) depending on nothing above them."""
+API over HTTP, and shared modules (vocabulary, auth, config, the pages' rule for direction controls) depending
+on nothing above them."""
 
 from __future__ import annotations
 
@@ -40,7 +41,11 @@ def offenders(folder: str, forbidden: tuple[str, ...], allowed: tuple[str, ...] 
     [
         ("backend/services", (f"{PACKAGE}.backend.api", f"{PACKAGE}.ui"), ()),
         ("backend/store", (f"{PACKAGE}.backend.api", f"{PACKAGE}.backend.services", f"{PACKAGE}.ui"), ()),
-        ("ui", (f"{PACKAGE}.backend",), (f"{PACKAGE}.backend.config",)),
+        (
+            "ui",
+            (f"{PACKAGE}.backend",),
+            (f"{PACKAGE}.backend.config", f"{PACKAGE}.backend.services.direction_controls"),
+        ),
     ],
 )
 def test_layers_import_only_downwards(folder: str, forbidden: tuple[str, ...], allowed: tuple[str, ...]) -> None:
@@ -52,6 +57,8 @@ def test_shared_modules_depend_on_nothing_above_them() -> None:
     assert {name for name in project["backend/vocabulary.py"] if name.startswith(PACKAGE)} == set()
     assert {name for name in project["backend/auth.py"] if name.startswith(PACKAGE)} == {f"{PACKAGE}.backend.config"}
     assert {name for name in project["backend/config.py"] if name.startswith(PACKAGE)} == set()
+    shown = project["backend/services/direction_controls.py"]  # the pages' one rule, the UI's as well
+    assert {name for name in shown if name.startswith(PACKAGE)} == set()
 
 
 def test_everything_imports_the_installed_names_never_the_bare_folders() -> None:

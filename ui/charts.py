@@ -42,13 +42,22 @@ class Point:
 
 @dataclass(frozen=True)
 class Series:
+    """One emotion category of one target. `runs` are its readings that follow each other with no reading of
+    another category of the same target between them: only those are joined by a line."""
+
     name: str
     colour: str
     points: list[Point]
+    runs: list[list[Point]] = field(default_factory=list)
 
     @property
     def path(self) -> str:
-        return " ".join(f"{'M' if i == 0 else 'L'}{p.x:.1f},{p.y:.1f}" for i, p in enumerate(self.points))
+        """An SVG path of one subpath per run of two readings or more (empty when there is none)."""
+        return " ".join(
+            " ".join(f"{'M' if i == 0 else 'L'}{p.x:.1f},{p.y:.1f}" for i, p in enumerate(run))
+            for run in self.runs
+            if len(run) > 1
+        )
 
 
 @dataclass(frozen=True)
@@ -60,17 +69,18 @@ class Tick:
 
 @dataclass
 class LineChart:
-    """Intensity (0 to 1) over time for one participant, one series per emotion category."""
+    """Intensity (0 to 1) over time for one participant, one series per emotion category. Its sizes are in the
+    drawing's own units: the page draws every chart at one width, so its text has one size however many there are."""
 
     title: str
     subject: str
     kind: str
     qualifier: str = ""  # what tells this participant from a namesake
-    width: int = 640
-    height: int = 220
+    width: int = 540  # about a column's width on a desktop screen: text is drawn near its own size
+    height: int = 226
     left: int = 44
     right: int = 16
-    top: int = 14
+    top: int = 30  # room for the scale's name above it
     bottom: int = 34
     series: list[Series] = field(default_factory=list)
     x_ticks: list[Tick] = field(default_factory=list)
@@ -115,13 +125,21 @@ def _emotion_chart(target: str, rows: list[Mapping[str, object]], name: Name | N
         return chart.plot_bottom - plot_height * max(0.0, min(1.0, value))
 
     by_category: dict[str, list[Point]] = {}
+    runs: dict[str, list[list[Point]]] = {}
+    previous = None
     for row, moment in sorted(zip(rows, times, strict=True), key=lambda pair: pair[1]):
         category = str(row.get("category") or "unknown")
         intensity = float(row["intensity"])  # type: ignore[arg-type]
-        by_category.setdefault(category, []).append(
-            Point(x_of(moment), y_of(intensity), f"{when(row['time'])} · {category} {intensity:.2f}")
-        )
-    chart.series = [Series(category, colour_for(category), points) for category, points in sorted(by_category.items())]
+        point = Point(x_of(moment), y_of(intensity), _reading_title(row, category, intensity))
+        by_category.setdefault(category, []).append(point)
+        if category != previous:  # a reading of another category in between: the line stops there
+            runs.setdefault(category, []).append([])
+        runs[category][-1].append(point)
+        previous = category
+    chart.series = [
+        Series(category, colour_for(category), points, runs[category])
+        for category, points in sorted(by_category.items())
+    ]
     chart.y_ticks = [Tick(y_of(value), f"{value:g}") for value in (0.0, 0.25, 0.5, 0.75, 1.0)]
     moments = [start] if span == 0 else [start + (end - start) * (i / 3) for i in range(4)]
     with_date = start.date() != end.date()
@@ -131,6 +149,12 @@ def _emotion_chart(target: str, rows: list[Mapping[str, object]], name: Name | N
         for moment, anchor in zip(moments, anchors, strict=True)
     ]
     return chart
+
+
+def _reading_title(row: Mapping[str, object], category: str, intensity: float) -> str:
+    confidence = row.get("confidence")
+    sure = f", confidence {confidence:.2f}" if isinstance(confidence, int | float) else ""
+    return f"{when(row['time'])} · {category}: intensity {intensity:.2f}{sure}"
 
 
 @dataclass(frozen=True)

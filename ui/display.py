@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from datetime import UTC, datetime
 from urllib.parse import urlencode
 
@@ -18,6 +19,31 @@ def short_iri(value: object) -> str:
         return compacted
     tail = text.rstrip("/#").replace("#", "/").rsplit("/", 1)[-1]
     return tail or text
+
+
+def iri_text(value: object) -> str:
+    """An IRI so its owner can be told: `prefix:name` in a known vocabulary, else the whole IRI (the last part
+    alone, `activity_respond_4`, does not say which robot's)."""
+    text = str(value or "")
+    return current().compact(text) if text.startswith(("http://", "https://", "urn:")) else text
+
+
+_GENERATED = re.compile(r"[-_]?[0-9a-f]{12,}", re.IGNORECASE)
+
+
+def iri_tail(iri: object) -> str:
+    return str(iri or "").rstrip("/#").replace("#", "/").rsplit("/", 1)[-1]
+
+
+def is_unnamed(iri: object, label: object) -> bool:
+    """True when a label is only the IRI's last part: the log gave the resource no name."""
+    return not label or str(label) == iri_tail(iri)
+
+
+def id_words(iri: object) -> str:
+    """The words of an unnamed resource's IRI without its generated id: `…/observation-041730fd31af` →
+    `observation`, `…/human_utterance_2a72abaa3d6798df` → `human utterance`."""
+    return re.sub(r"[-_]+", " ", _GENERATED.sub("", iri_tail(iri))).strip() or "unnamed"
 
 
 def when(value: object, with_date: bool = True) -> str:
@@ -60,6 +86,7 @@ def explain_href(iri: object) -> str:
 
 FILTERS = {
     "short_iri": short_iri,
+    "iri_text": iri_text,
     "when": when,
     "epoch_when": epoch_when,
     "number": number,

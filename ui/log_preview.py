@@ -8,17 +8,13 @@ from dataclasses import dataclass, field
 import anyio
 from pyoxigraph import BlankNode, Literal, NamedNode, RdfFormat, parse
 
+from segb_server.ui import vocabulary
 from segb_server.ui.api_client import BackendClient
 from segb_server.ui.display import short_iri
 
 RDF_TYPE = "http://www.w3.org/1999/02/22-rdf-syntax-ns#type"
-# Where robots' logs keep a readable name (see the README's RDF shapes): people, robots, everything else.
-NAME_PREDICATES = (
-    "http://xmlns.com/foaf/0.1/firstName",
-    "http://schema.org/name",
-    "http://www.w3.org/2000/01/rdf-schema#label",
-    "http://schema.org/text",
-)
+# Without a name (as the server's rule of reading gives it, GET /vocabulary), a subject is shown by its text.
+TEXT = "http://schema.org/text"
 CHECKED_SUBJECTS = 500  # one query of this many IRIs; a longer log shows the count of the first ones
 SHOWN_SUBJECTS = 50
 
@@ -28,6 +24,7 @@ class Subject:
     iri: str
     name: str | None = None
     types: list[str] = field(default_factory=list)
+    rank: int = 1 << 30  # the name's predicate's place among the name predicates (lower is better)
 
 
 @dataclass
@@ -46,8 +43,10 @@ class Preview:
         return self.new[:SHOWN_SUBJECTS]
 
 
-def read_log(text: str) -> Preview | None:
-    """The document's subjects (None when it does not parse: the API's validation says why)."""
+def read_log(text: str, name_predicates: tuple[str, ...] = ()) -> Preview | None:
+    """The document's subjects (None when it does not parse: the API's validation says why), each named by the
+    first of `name_predicates` it has, else by its text."""
+    ranks = {predicate: rank for rank, predicate in enumerate((*name_predicates, TEXT))}
     subjects: dict[str, Subject] = {}
     blanks: set[str] = set()
     triples = 0
@@ -63,8 +62,8 @@ def read_log(text: str) -> Preview | None:
             known = subjects.setdefault(subject.value, Subject(subject.value))
             if predicate == RDF_TYPE and isinstance(value, NamedNode):
                 known.types.append(short_iri(value.value))
-            elif predicate in NAME_PREDICATES and isinstance(value, Literal) and known.name is None:
-                known.name = value.value
+            elif predicate in ranks and isinstance(value, Literal) and ranks[predicate] < known.rank:
+                known.name, known.rank = value.value, ranks[predicate]
     except (SyntaxError, ValueError):
         return None
     return Preview(triples=triples, subjects=list(subjects.values()), blank_subjects=len(blanks))
@@ -72,7 +71,8 @@ def read_log(text: str) -> Preview | None:
 
 async def preview(client: BackendClient, token: str | None, text: str) -> Preview | None:
     # Parsing a long log is CPU work: keep it off the event loop.
-    found = await anyio.to_thread.run_sync(read_log, text)
+    names = (await vocabulary.ensure(client)).name_predicates
+    found = await anyio.to_thread.run_sync(read_log, text, names)
     if found is None or not found.subjects:
         return found
     checked = found.subjects[:CHECKED_SUBJECTS]

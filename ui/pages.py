@@ -8,13 +8,16 @@ from typing import Any
 from fastapi import Request
 from fastapi.responses import HTMLResponse, JSONResponse, Response
 from fastapi.templating import Jinja2Templates
+from jinja2 import FileSystemLoader
 
+from segb_server.backend.services.direction_controls import page_environment
 from segb_server.ui.api_client import BackendClient, BackendError
 from segb_server.ui.csrf import csrf_token
 from segb_server.ui.display import FILTERS
 from segb_server.ui.session import TOKEN_COOKIE, Viewer
 
-TEMPLATES = Jinja2Templates(directory=str(Path(__file__).parent / "templates"))
+# Every page shows a robot's direction controls as marks (direction_controls.py), whatever its template writes.
+TEMPLATES = Jinja2Templates(env=page_environment(FileSystemLoader(Path(__file__).parent / "templates")))
 TEMPLATES.env.filters.update(FILTERS)
 
 AUDITOR = ("auditor",)

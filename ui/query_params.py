@@ -7,17 +7,20 @@ import re
 from fastapi import Request
 
 _HAS_ZONE = re.compile(r"(Z|[+-]\d\d:?\d\d)$")
+_SPACED_TIME = re.compile(r"^(\d{4}-\d\d-\d\d) (?=\d)")  # `2026-03-10 09:00:00`, as the tables show times
 TIME_NAMES = ("since", "until")
 MAX_PAGE_NUMBER_DIGITS = 18  # the API's integers; longer is no page number
 
 
 def query_values(request: Request, names: tuple[str, ...], times: tuple[str, ...] = TIME_NAMES) -> dict[str, str]:
-    """The non-empty values of `names`, trimmed. A time (one of `times`) picked in the browser has no zone:
-    pages label times as UTC, so it gets one."""
+    """The non-empty values of `names`, trimmed. A time (one of `times`) typed as the tables show it, with a
+    space for the `T` or with no zone, is made ISO 8601: pages label times as UTC, so it gets that zone."""
     values = {name: request.query_params.get(name, "").strip() for name in names}
     for name in times:
-        if values.get(name) and not _HAS_ZONE.search(values[name]):
-            values[name] += "Z"
+        if values.get(name):
+            values[name] = _SPACED_TIME.sub(r"\1T", values[name])
+            if not _HAS_ZONE.search(values[name]):
+                values[name] += "Z"
     return {name: value for name, value in values.items() if value}
 
 

@@ -13,6 +13,8 @@ from segb_server.ui.api_client import BackendClient, BackendError, BackendUnavai
 class Vocabulary:
     prefixes: dict[str, str] = field(default_factory=dict)
     kinds: tuple[str, ...] = ()
+    name_predicates: tuple[str, ...] = ()  # where a display name is read, best first (the server's rule of reading)
+    human_classes: tuple[str, ...] = ()
 
     def compact(self, iri: str) -> str:
         """`prefix:local` when the IRI is in a known namespace, else the IRI itself."""
@@ -43,5 +45,10 @@ async def ensure(client: BackendClient) -> Vocabulary:
             body = await client.get_json("/vocabulary")
         except (BackendError, BackendUnavailable):
             return _known
-        _known = Vocabulary(dict(body["prefixes"]), tuple(body["kinds"]))
+        _known = Vocabulary(
+            dict(body["prefixes"]),
+            tuple(body["kinds"]),
+            tuple(body.get("name_predicates", ())),
+            tuple(body.get("human_classes", ())),
+        )
     return _known

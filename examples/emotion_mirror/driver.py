@@ -14,7 +14,7 @@ from typing import Literal
 
 from rdflib import URIRef
 
-from segb_server.examples.emotion_mirror.mission import EmotionMirrorMission
+from segb_server.examples.emotion_mirror.mission import EmotionMirrorMission, is_neutral
 from segb_server.examples.emotion_mirror.script import Expression, Script
 
 SCHEMA_TEXT = URIRef("http://schema.org/text")
@@ -35,8 +35,12 @@ def play(mission: EmotionMirrorMission, script: Script) -> Iterator[Step]:
     person = script.human_name
     for event in script.events:
         if isinstance(event, Expression):
-            recognition = mission.on_face_expression(event.expression, event.at, confidence=event.confidence)
+            recognition = mission.on_face_expression(
+                event.expression, event.at, confidence=event.confidence, intensity=event.intensity
+            )
             seen = f"{person} looks {event.expression} ({event.confidence:.2f})"
+            if is_neutral(event.expression):
+                seen += ": no Big6 emotion, none logged"
             yield Step(event.at, "expression", seen, recognition)
             continue
         exchange = mission.on_user_utterance(event.text, event.at)

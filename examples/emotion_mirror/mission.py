@@ -4,6 +4,8 @@ The robot listens to a person, replies (through an LLM or a fixed fallback), and
 expression it detects. Every event is logged and the whole graph is published right after it:
 
 * a detected expression  -> emotion-recognition activity, observation, Big6 emotion annotation on the person;
+                            a neutral face has no Big6 category (the client raises on "neutral"): it is logged
+                            with no emotion annotation, noted in the Python log, and the robot mirrors nothing;
 * an utterance           -> shared event, listening activity, InitialMessage from the person, and the
                             expression read just before linked to that shared event (`schema:about`);
 * the reply              -> response activity (using the LLM only when the LLM wrote the reply),
@@ -14,6 +16,7 @@ ROS is not needed: a driver (see `driver.py`) calls these three handlers with ti
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import datetime, timedelta
@@ -35,8 +38,17 @@ RESPONSE_MESSAGE = URIRef(ORO + "ResponseMessage")
 FACIAL_EXPRESSION = URIRef("http://www.gsi.upm.es/ontologies/amor/ns#FacialExpressionObservation")
 
 FALLBACK_REPLY = "I am here with you. Tell me more."
+# A face that shows no emotion. The tutorial's `EmotionCategory.from_expression("neutral")` raises in the client
+# (1.0.5): Big6 has no such category, so a neutral face gets no emotion reading.
+NEUTRAL = "neutral"
+
+notes = logging.getLogger(__name__)
 
 Replier = Callable[[str], tuple[str, str]]  # utterance -> (reply text, reply source)
+
+
+def is_neutral(expression: str) -> bool:
+    return expression.strip().casefold() == NEUTRAL
 
 
 def fallback_replier(text: str) -> tuple[str, str]:
@@ -123,8 +135,12 @@ class EmotionMirrorMission:
 
     # --- the three handlers the ROS nodes (or the driver) call -------------------------------------------
 
-    def on_face_expression(self, expression: str, at: datetime, confidence: float = 0.9) -> URIRef:
-        """The face listener saw `expression` (a Big6 name such as "happy") on the person."""
+    def on_face_expression(
+        self, expression: str, at: datetime, confidence: float = 0.9, intensity: float | None = None
+    ) -> URIRef:
+        """The face listener saw `expression` (a Big6 name such as "happy", or "neutral") on the person, this
+        strong (`intensity`) and the recogniser this sure of it (`confidence`); a listener that gives one score
+        has it stand for both."""
         self._turn += 1
         log = self.logger
         recognition = log.log_activity(
@@ -141,13 +157,18 @@ class EmotionMirrorMission:
             observation_types=[FACIAL_EXPRESSION],
             generated_by_activity=recognition,
         )
-        log.log_emotion_annotation(
-            source_activity=recognition,
-            targets=[self.human],
-            emotions=[EmotionScore(expression, intensity=confidence, confidence=confidence)],
-            annotation_id=f"face_emotion_{self._turn}",
-        )
-        self._last_expression = expression
+        if is_neutral(expression):
+            notes.info("a neutral face (turn %d): no Big6 emotion to log or to mirror", self._turn)
+            self._last_expression = None
+        else:
+            strength = confidence if intensity is None else intensity
+            log.log_emotion_annotation(
+                source_activity=recognition,
+                targets=[self.human],
+                emotions=[EmotionScore(expression, intensity=strength, confidence=confidence)],
+                annotation_id=f"face_emotion_{self._turn}",
+            )
+            self._last_expression = expression
         self._last_recognition = self._recognition_without_event = recognition
         self._publish()
         return recognition

@@ -4,11 +4,13 @@ A script file is JSON:
 
     {"human": {"id": "maria", "name": "Maria"},
      "start": "2026-03-10T10:00:00Z",
-     "events": [{"at": 0, "expression": "happy", "confidence": 0.92},
+     "events": [{"at": 0, "expression": "happy", "intensity": 0.92, "confidence": 0.87},
                 {"at": 1, "says": "I passed my driving test today!", "reply_after": 1.5}]}
 
-`at` is seconds after `start`. An expression is a Big6 name the client accepts ("happy", "sad",
-"surprised", "angry", "afraid", "disgusted" or the bare category names). Every utterance gets a reply
+`at` is seconds after `start`. An expression's `intensity` is how strong it is, its `confidence` how sure the
+recogniser is of it (both 0 to 1; without an intensity, the confidence stands for it). An expression is a Big6
+name the client accepts ("happy", "sad", "surprised", "angry", "afraid", "disgusted" or the bare category
+names), or "neutral" (logged with no emotion reading: Big6 has none for it). Every utterance gets a reply
 `reply_after` seconds later (default 1.5); the driver gives it before replaying the next event, as the
 mission answers one utterance at a time.
 """
@@ -23,6 +25,8 @@ from typing import Any
 
 from semantic_log_generator import EmotionCategory
 
+from segb_server.examples.emotion_mirror.mission import is_neutral
+
 REPLY_AFTER = 1.5
 
 
@@ -35,6 +39,7 @@ class Expression:
     at: datetime
     expression: str
     confidence: float = 0.9
+    intensity: float | None = None
 
 
 @dataclass(frozen=True)
@@ -60,13 +65,13 @@ DEFAULT_SCRIPT: dict[str, Any] = {
     "human": {"id": "maria", "name": "Maria"},
     "start": "2026-03-10T10:00:00Z",
     "events": [
-        {"at": 0, "expression": "happy", "confidence": 0.92},
+        {"at": 0, "expression": "happy", "intensity": 0.92, "confidence": 0.87},
         {"at": 1, "says": "Hi! I passed my driving test today!"},
-        {"at": 10, "expression": "surprised", "confidence": 0.81},
+        {"at": 10, "expression": "surprised", "intensity": 0.81, "confidence": 0.74},
         {"at": 11, "says": "I did not expect to pass on the first try."},
-        {"at": 20, "expression": "sad", "confidence": 0.64},
+        {"at": 20, "expression": "sad", "intensity": 0.64, "confidence": 0.58},
         {"at": 21, "says": "I wish my grandmother could have seen it."},
-        {"at": 30, "expression": "happy", "confidence": 0.95},
+        {"at": 30, "expression": "happy", "intensity": 0.95, "confidence": 0.91},
         {"at": 31, "says": "Anyway, let's celebrate tonight!"},
     ],
 }
@@ -124,15 +129,18 @@ def _event(index: int, raw: Any, start: datetime) -> Event:
         raise ScriptError(f"{where}.at must be a number of seconds >= 0")
     at = start + timedelta(seconds=offset)
     if "expression" in raw:
-        confidence = raw.get("confidence", 0.9)
-        if isinstance(confidence, bool) or not isinstance(confidence, int | float) or not 0 <= confidence <= 1:
-            raise ScriptError(f"{where}.confidence must be between 0 and 1")
+        confidence, intensity = raw.get("confidence", 0.9), raw.get("intensity")
+        for name, score in (("confidence", confidence), ("intensity", confidence if intensity is None else intensity)):
+            if isinstance(score, bool) or not isinstance(score, int | float) or not 0 <= score <= 1:
+                raise ScriptError(f"{where}.{name} must be between 0 and 1")
         expression = str(raw["expression"])
         try:
-            EmotionCategory.coerce(expression)  # refused here, before anything is published
+            if not is_neutral(expression):
+                EmotionCategory.coerce(expression)  # refused here, before anything is published
         except ValueError:
-            raise ScriptError(f"{where}.expression {expression!r} is not a Big6 emotion") from None
-        return Expression(at=at, expression=expression, confidence=float(confidence))
+            raise ScriptError(f"{where}.expression {expression!r} is not a Big6 emotion or neutral") from None
+        strength = None if intensity is None else float(intensity)
+        return Expression(at=at, expression=expression, confidence=float(confidence), intensity=strength)
     if "says" in raw:
         reply_after = raw.get("reply_after", REPLY_AFTER)
         if isinstance(reply_after, bool) or not isinstance(reply_after, int | float) or reply_after < 0:

@@ -261,11 +261,12 @@ def test_a_robot_or_a_message_is_not_erased_or_exported_as_a_person(memory_api: 
         exported = memory_api.client.get(f"/humans/{quote(iri, safe='')}/export", params={"format": "turtle"})
         assert exported.status_code == 422, exported.text
     assert len(memory_api.client.get("/ledger").json()["receipts"]) == 1  # the post alone: nothing was erased
-    # Someone a robot names without typing them is a person as far as anyone can tell: exported and erased.
+    # Someone a robot names without typing them may be read out (an export writes nothing), but an erasure, which
+    # cannot be undone, asks for the log to type them as a person.
     exported = memory_api.client.get(f"/humans/{quote(someone, safe='')}/export", params={"format": "turtle"})
     assert exported.status_code == 200 and said in exported.text
     erased = memory_api.client.post("/humans/erase", json={"iri": someone, "reason": "request 8"})
-    assert erased.status_code == 200, erased.text
+    assert erased.status_code == 422 and "does not type" in erased.json()["detail"], erased.text
 
 
 @pytest.mark.virtuoso

@@ -79,15 +79,14 @@ def test_every_shipped_rule_finds_what_it_is_built_for_in_a_log_the_client_made(
 
 
 def test_the_demo_is_clean_but_for_what_it_shows_on_purpose(tmp_path: Path) -> None:
-    """The demo's findings are its designed cases only: TIAGo overheard Maria and never answered her, every reply
-    is the mission's fallback (no model runs in the demo), and Carlos looked angry (0.88). Every other rule, the
-    data-quality ones among them, finds nothing."""
+    """The demo's findings are its designed cases only: every reply is the mission's fallback (no model runs in
+    the demo), and Carlos looked angry (0.88). Every other rule, the data-quality ones among them, finds nothing:
+    TIAGo overheard what Maria said to ARI, and ARI answered it, so it is no unanswered message."""
     with InProcess(create_app(make_settings(), demo=True)) as live:
         settle(live.client)
         found = all_findings(live.client)
     grouped = by_rule(found)
-    assert set(grouped) == {"unanswered-message", "reply-without-model", "strong-negative-emotion"}
-    assert grouped["unanswered-message"] == {"https://example.org/segb/robots/tiago/v1/message_user_1"}
+    assert set(grouped) == {"reply-without-model", "strong-negative-emotion"}
     assert len(grouped["reply-without-model"]) == 5  # ARI's four replies and TIAGo's one
     (anger,) = [f for f in found if f["rule"] == "strong-negative-emotion"]
     assert anger["robot"] == TIAGO and anger["values"]["category"] == "anger" and anger["values"]["intensity"] == 0.88

@@ -172,7 +172,7 @@ def test_graph_reads_at_first_sight(demo_stack_graph: tuple[UiStack, dict], page
     kinds = {label.split(": ", 1)[0] for label in shown}
     assert {"robot", "human", "message"} <= kinds
     assert kinds <= {"robot", "human", "message"}  # activities, emotions… wait for hover, focus or zoom
-    assert "robot: ARI" in shown and "human: Maria (ari/v1/human_maria)" in shown
+    assert "robot: ARI" in shown and "human: Maria (ARI, TIAGo)" in shown
 
     others = sum(1 for node in api_graph["nodes"] if node["kind"] == "other")
     stats = page.locator("#graph-stats")
@@ -201,6 +201,7 @@ def test_node_details_tell_vocabularies_apart_and_keep_the_iri_inside(
         "prov:Person",
     ]
     iri = page.locator("#graph-panel .panel-iri")
+    assert iri.get_attribute("title").endswith("/human_carlos") and iri.inner_text() == "Copy IRI"
     assert iri.evaluate("p => p.scrollWidth <= p.clientWidth")
     box, panel = iri.bounding_box(), page.locator("#graph-panel").bounding_box()
     assert box["x"] + box["width"] <= panel["x"] + panel["width"]

@@ -54,6 +54,11 @@ def test_logs_page_lists_requests_and_filters_them(ui_stack: UiStack, page) -> N
     assert page.console_errors == []
 
 
-def test_a_bad_limit_is_explained(ui_stack: UiStack, page) -> None:  # type: ignore[no-untyped-def]
+def test_a_page_size_past_the_largest_shows_the_largest(ui_stack: UiStack, page) -> None:  # type: ignore[no-untyped-def]
     page.goto(f"{ui_stack.ui_url}/logs?limit=5000")
-    assert "limit" in page.locator(".banner-error").inner_text()
+    assert page.locator("input[name=limit]").input_value() == "500"
+
+
+def test_a_page_further_than_the_log_is_read_back_is_explained(ui_stack: UiStack, page) -> None:  # type: ignore[no-untyped-def]
+    page.goto(f"{ui_stack.ui_url}/logs?offset=5000")
+    assert "offset" in page.locator(".banner-error").inner_text()

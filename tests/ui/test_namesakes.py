@@ -50,6 +50,6 @@ def test_the_model_usage_chart_names_the_robots_that_used_each_model(demo_stack:
 def test_the_graph_labels_namesakes_apart(demo_stack: UiStack) -> None:
     drawn = httpx.get(f"{demo_stack.ui_url}/kg-graph/data", timeout=30).json()
     humans = sorted(node["label"] for node in drawn["nodes"] if node["kind"] == "human")
-    assert humans == ["Carlos", "Maria (ari/v1/human_maria)", "Maria (mirror/v1/human_maria)"]
+    assert humans == ["Carlos", "Maria (ARI, TIAGo)", "Maria (Emotion Mirror)"]  # the robots that met each
     messages = [node["label"] for node in drawn["nodes"] if node["kind"] == "message"]
     assert "I am here with you. Tell me more." in messages  # repeated words are not namesakes

@@ -114,7 +114,7 @@ def test_a_single_report_page_shows_every_row_it_counts(demo_stack: UiStack, ope
             listed = page.locator(".bubble").count()
         else:
             listed = page.locator(f"#report-{name} tbody tr").count()
-        counted = re.match(r"(?:\w+ 1\u2013(\d+)$|(\d+) \w+ \(report rows 1\u2013\d+\)$)", count)
+        counted = re.match(r"(?:\w+ 1\u2013(\d+)$|(\d+) \w+, made of rows 1\u2013\d+ \(one row per property\)$)", count)
         assert counted is not None, count
         assert int(counted.group(1) or counted.group(2)) == listed > 0, (name, count)
         assert page.evaluate(CLIPPED_ROWS) == 0, name
@@ -126,7 +126,9 @@ def test_robot_states_counts_snapshots_not_property_rows(demo_stack: UiStack, op
     snapshots = page.locator("#report-robot-states tbody tr")
     # ARI and the example robot: one per reply (4 each); TIAGo: Carlos's reply and the docking.
     assert snapshots.count() == 10
-    assert re.fullmatch(r"10 snapshots \(report rows 1\u2013\d+\)", page.locator("#report-count").inner_text())
+    assert re.fullmatch(
+        r"10 snapshots, made of rows 1\u2013\d+ \(one row per property\)", page.locator("#report-count").inner_text()
+    )
     assert "docking" in snapshots.last.inner_text()  # the last one, TIAGo's, is on the page
 
 

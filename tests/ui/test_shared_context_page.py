@@ -127,4 +127,4 @@ def test_the_demo_gives_the_page_contexts_and_a_case_to_review(demo_stack: UiSta
     sources = page.locator(".context-source dl").all_inner_texts()
     assert sum("Subject\nnone\n" in source for source in sources) == 1
     subjects = page.locator(".context dd .entity").all_inner_texts()
-    assert "human_maria (ari/v1/human_maria)" in subjects and "human_maria (mirror/v1/human_maria)" in subjects
+    assert "Maria (ARI, TIAGo)" in subjects and "Maria (Emotion Mirror)" in subjects

@@ -7,15 +7,19 @@ in an HttpOnly cookie.
 
 from __future__ import annotations
 
+import asyncio
+from collections.abc import Mapping
 from typing import Any
 
 from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse, JSONResponse, Response
 
 from segb_server.ui.choices import participant_choices
+from segb_server.ui.display import id_words, is_unnamed, when
 from segb_server.ui.findings_marks import findings_about
 from segb_server.ui.namesakes import tell_apart
 from segb_server.ui.pages import backend, render, token
+from segb_server.ui.participant_names import MAX_PAIRS, robots_met
 from segb_server.ui.query_params import query_values
 from segb_server.ui.vocabulary import current
 
@@ -59,18 +63,61 @@ async def _relay_json(request: Request, path: str, params: dict[str, str]) -> Re
 
 @router.get("/kg-graph/data")
 async def graph_data(request: Request) -> Response:
-    answer = await backend(request).get_json("/graph", token=token(request), params=graph_parameters(request))
-    return JSONResponse(with_namesakes_told_apart(answer))
+    client, user_token = backend(request), token(request)
+    answer, participants = await asyncio.gather(
+        client.get_json("/graph", token=user_token, params=graph_parameters(request)),
+        client.get_json("/reports/participants", token=user_token, params={"limit": MAX_PAIRS}),
+    )
+    return JSONResponse(with_readable_labels(answer, robots_met(participants["rows"])))
 
 
-def with_namesakes_told_apart(graph: dict[str, Any]) -> dict[str, Any]:
-    """Two robots called the same, two people called Maria, one model name registered by several robots: their
-    labels get what tells them apart. Other kinds (messages saying the same words) keep their text."""
-    people = [node for node in graph["nodes"] if node.get("kind") in NAMED_KINDS]
-    names = tell_apart({node["id"]: str(node.get("label") or node["id"]) for node in people})
+def with_readable_labels(graph: dict[str, Any], humans_met: Mapping[str, str]) -> dict[str, Any]:
+    """Labels that name, not ids. Two people called Maria are told apart by the robots that met them, one model
+    name registered by several robots by the robots that used it; a node the log gave no name (a state, a
+    property value) is told by its robot, kind and time, or by the words of its IRI without the generated id.
+    Other kinds (messages saying the same words) keep their text."""
+    nodes = {node["id"]: node for node in graph["nodes"]}
+    robots_of = _robots_around(graph, nodes)
+    hints = {**{iri: ", ".join(sorted(robots, key=str.casefold)) for iri, robots in robots_of.items()}, **humans_met}
+    for node in nodes.values():
+        if node.get("kind") != "robot" and is_unnamed(node["id"], node.get("label")):
+            node["label"] = _unnamed_label(node, robots_of.get(node["id"], set()))
+    people = [node for node in nodes.values() if node.get("kind") in NAMED_KINDS]
+    names = tell_apart({node["id"]: str(node.get("label") or node["id"]) for node in people}, hints)
     for node in people:
         node["label"] = str(names[node["id"]])
     return graph
+
+
+def _robots_around(graph: dict[str, Any], nodes: Mapping[str, Mapping[str, Any]]) -> dict[str, set[str]]:
+    """Each node's robots: those it has an edge to, else those of its neighbours (a model used by activities),
+    else the robot whose namespace its IRI is in."""
+    robot_names = {iri: str(node.get("label")) for iri, node in nodes.items() if node.get("kind") == "robot"}
+    neighbours: dict[str, set[str]] = {}
+    for edge in graph["edges"]:
+        neighbours.setdefault(edge["source"], set()).add(edge["target"])
+        neighbours.setdefault(edge["target"], set()).add(edge["source"])
+    direct = {iri: {robot_names[n] for n in near if n in robot_names} for iri, near in neighbours.items()}
+    # Last, the robot that minted the node's IRI in its own namespace (a model no activity of the drawing used).
+    minted = {_namespace(iri): name for iri, name in robot_names.items()}
+    return {
+        iri: direct.get(iri)
+        or {robot for n in neighbours.get(iri, ()) if n not in robot_names for robot in direct.get(n, set())}
+        or ({minted[_namespace(iri)]} if _namespace(iri) in minted else set())
+        for iri in nodes
+    }
+
+
+def _namespace(iri: str) -> str:
+    return iri.rstrip("/#").rsplit("/", 1)[0]
+
+
+def _unnamed_label(node: Mapping[str, Any], robots: set[str]) -> str:
+    kind = str(node.get("kind") or "")
+    if kind == "other" or not node.get("time"):
+        return id_words(node["id"])
+    whose = f"{', '.join(sorted(robots, key=str.casefold))}'s {kind}" if len(robots) == 1 else kind.capitalize()
+    return f"{whose} at {when(node['time'], with_date=False)}"
 
 
 @router.get("/kg-graph/resource")

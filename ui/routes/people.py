@@ -1,5 +1,6 @@
 """/people (admin): the people the log holds, each with a link to everything held about them (GET
-/humans/{iri}/export, relayed), and erasing one (POST /humans/erase) after typing ERASE to confirm."""
+/humans/{iri}/export, relayed), and erasing one (POST /humans/erase): first a preview of what would go (the same
+call with `dry_run`, which writes nothing), then the erasure itself after typing ERASE to confirm."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ from urllib.parse import quote
 from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse, Response
 
+from segb_server.ui.api_client import BackendError
 from segb_server.ui.csrf import check_csrf
 from segb_server.ui.forms import read_form
 from segb_server.ui.pages import ADMIN, backend, render, require, token
@@ -35,6 +37,24 @@ async def _people(request: Request) -> list[dict[str, str]]:
 async def people_page(request: Request) -> HTMLResponse:
     require(request, ADMIN)
     return render(request, "people.html", {"people": await _people(request), "confirmation": CONFIRMATION})
+
+
+@router.post("/people/preview", response_class=HTMLResponse)
+async def preview(request: Request) -> HTMLResponse:
+    """What erasing a person would take, counted by kind, above the erase form filled in for them."""
+    form = await read_form(request)
+    check_csrf(request, form)
+    iri = form.get("iri", "").strip()
+    context = {"confirmation": CONFIRMATION, "iri": iri, "reason": form.get("reason", "")}
+    try:
+        answer = await backend(request).post_json("/humans/erase", {"iri": iri, "dry_run": True}, token=token(request))
+    except BackendError as error:
+        if error.status in (401, 403):
+            raise
+        problem = f"Nothing can be erased for this IRI: {error.detail}"
+        people = await _people(request)
+        return render(request, "people.html", {**context, "problem": problem, "people": people}, error.status)
+    return render(request, "people.html", {**context, "preview": answer, "people": await _people(request)})
 
 
 @router.post("/people/erase", response_class=HTMLResponse)

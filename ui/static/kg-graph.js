@@ -2,10 +2,13 @@
  * /kg-graph/resource, merges neighbourhoods on demand. Every text from the graph is set with textContent:
  * robot-supplied strings never become markup.
  *
- * Readable at first sight: lanes carry their names, robots, humans and messages carry labels at the
- * starting zoom (the others on hover, keyboard focus or when zoomed in), "other" nodes (property values,
- * observations, parameters) are folded away behind a toggle, and the drawing starts at a zoom where
- * labels can be read. The drawing takes keyboard focus: arrows move between nodes, Enter opens one. */
+ * Readable at first sight: every lane in use is in view and carries its name beside its nodes, robots,
+ * humans and messages carry labels at the starting zoom (the others on hover, keyboard focus or when zoomed
+ * in), "other" nodes (property values, observations, parameters) are folded away behind a toggle, and the
+ * drawing starts at a zoom where labels can be read. Edges to robots, humans and models (hubs standing
+ * outside time, with an edge to much of the drawing) are faded; a node hovered, focused or selected lights
+ * its edges up with their labels, a label left out where it would cover another. The drawing takes keyboard
+ * focus: arrows move between nodes, Enter opens one. */
 (function () {
   "use strict";
 
@@ -19,11 +22,14 @@
     robot: "Robots", human: "Humans", "shared-event": "Shared events", activity: "Activities", message: "Messages",
     emotion: "Emotions", state: "States", model: "Models", other: "Other"
   };
-  var LANE_HEIGHT = 140, SUB_ROW = 30, SUB_ROWS = 3, STEP = 42;
+  // A lane: up to SUB_ROWS rows SUB_ROW apart, then room for its name above the next lane (model units).
+  var LANE_HEIGHT = 110, SUB_ROW = 26, SUB_ROWS = 3, STEP = 42, NODE_SIZE = 18;
+  var MAX_LANE_STRETCH = 4; // Fit may stretch lanes apart up to this much to fill a tall box
+  var FIT_PADDING = 30; // pixels left around the whole drawing
   // Room a labelled node needs in its row before the next one (model units); others need one time step.
   var GAP = { robot: 170, human: 170, message: 170 };
-  // Robots and humans stand side by side where their lanes begin; other lanes stack crowded nodes.
-  var ROWS = { robot: 1, human: 1 };
+  // Robots, humans and models stand outside time, in columns where their lanes begin.
+  var STANDING = { robot: true, human: true, model: true };
   var READABLE_ZOOM = 0.75; // below this the labels of robots, humans and messages are too small to read
   var LARGE = 400; // above this many nodes, drawing favours speed over detail (straight edges, no edge labels)
   var ARROWS = { ArrowRight: [1, 0], ArrowLeft: [-1, 0], ArrowDown: [0, 1], ArrowUp: [0, -1] };
@@ -45,9 +51,11 @@
   var fetchedAt = 0;
   var cy = null;
   var truncated = false;
+  var large = false; // thousands of nodes: drawing favours speed over detail
   var focused = null;
   var laneItems = {};
-  var lanesInUse = {};
+  var laneSlots = {}; // kind → its place from the top among the lanes drawn now
+  var laneHeight = LANE_HEIGHT;
   var viewNote = "";
 
   function fetchJson(url) {
@@ -85,10 +93,21 @@
     return text;
   }
 
-  /* Positions: timed nodes by the rank of their time among the distinct times (nodes of one moment share a
-   * column); robots and humans at the left, where their lanes begin; other untimed nodes at the mean of
-   * their placed neighbours; then each lane spreads its nodes over a few sub-rows so that neither nodes nor
-   * labels overlap. Linear in nodes and edges (plus sorting the times). */
+  /* A resource's name as the API gives it, unless that is only its IRI's last part made of a generated id
+   * (`implementation_8427…`, `observation-0417…`): then the words around the id, or "unnamed". */
+  function readable(iri, label) {
+    var text = String(label || "");
+    var tail = String(iri).replace(/[\/#]+$/, "").split(/[\/#]/).pop();
+    if (text && text !== tail) { return text; }
+    if (!/[0-9a-f]{12,}/i.test(tail) && !/^(human|robot)_/.test(tail)) { return tail || "unnamed"; }
+    return tail.replace(/[-_]?[0-9a-f]{12,}/gi, "").replace(/[-_]+/g, " ").trim() || "unnamed";
+  }
+
+  /* Places: timed nodes by the rank of their time among the distinct times (nodes of one moment share a
+   * column); robots, humans and models at the left, where their lanes begin, in columns of SUB_ROWS; other
+   * untimed nodes at the mean of their placed neighbours, else after the last time; then each lane spreads its
+   * nodes over a few sub-rows so that neither nodes nor labels overlap. `{id: {x, row}}`: the rows become
+   * heights in arrange(). Linear in nodes and edges (plus sorting the times). */
   function layout(nodes, edges, anchor) {
     var x = {}, adjacency = {};
     edges.forEach(function (e) {
@@ -101,12 +120,11 @@
     Object.keys(times).sort().forEach(function (time, i) { rank[time] = i; });
     var offset = anchor ? anchor.x : 0;
     nodes.forEach(function (n) { if (n.time) { x[n.id] = offset + rank[n.time] * STEP; } });
-    var standing = {}, placed = {};
-    nodes.forEach(function (n) { if (!anchor && !n.time && ROWS[n.kind]) { standing[n.kind] = (standing[n.kind] || 0) + 1; } });
+    var placed = {};
     nodes.forEach(function (n) {
-      if (!anchor && !n.time && ROWS[n.kind]) {
-        placed[n.kind] = (placed[n.kind] || 0) + 1;
-        x[n.id] = offset - STEP - (standing[n.kind] - placed[n.kind] + 1) * GAP[n.kind];
+      if (!anchor && !n.time && STANDING[n.kind]) {
+        var column = Math.floor((placed[n.kind] = (placed[n.kind] || 0) + 1) / SUB_ROWS - 1e-9);
+        x[n.id] = offset - STEP - (column + 1) * (GAP[n.kind] || GAP.robot);
       }
     });
     for (var pass = 0; pass < 2; pass++) {
@@ -116,13 +134,13 @@
         if (xs.length) { x[n.id] = xs.reduce(function (a, b) { return a + b; }, 0) / xs.length; }
       });
     }
-    nodes.forEach(function (n, i) { if (x[n.id] === undefined) { x[n.id] = offset + i * STEP; } });
+    var last = Math.max.apply(null, [offset].concat(Object.keys(x).map(function (id) { return x[id]; })));
+    nodes.forEach(function (n) { if (x[n.id] === undefined) { x[n.id] = last + STEP; } }); // the packing spreads them
     var byLane = {};
     nodes.forEach(function (n) { (byLane[n.kind] = byLane[n.kind] || []).push(n); });
     var positions = {};
     Object.keys(byLane).forEach(function (kind) {
-      var lane = Math.max(0, LANES.indexOf(kind));
-      var gap = GAP[kind] || STEP, rows = ROWS[kind] || SUB_ROWS;
+      var gap = STANDING[kind] ? GAP[kind] || GAP.robot : GAP[kind] || STEP, rows = SUB_ROWS;
       var lastX = [];
       for (var r = 0; r < rows; r++) { lastX.push(-Infinity); }
       byLane[kind].sort(function (a, b) { return x[a.id] - x[b.id]; });
@@ -134,20 +152,81 @@
         }
         if (row === rows) { row = best; want = lastX[best] + gap; }
         lastX[row] = want;
-        positions[n.id] = { x: want, y: lane * LANE_HEIGHT + row * SUB_ROW };
+        positions[n.id] = { x: want, row: row };
       });
     });
     return positions;
   }
 
-  function nodeElement(n, position) {
-    var node = { group: "nodes", data: { id: n.id, label: n.label, kind: n.kind, time: n.time || "" }, position: position };
+  function nodeElement(n, place) {
+    var node = { group: "nodes", data: { id: n.id, label: n.label, kind: n.kind, time: n.time || "", row: place.row },
+      position: { x: place.x, y: place.row * SUB_ROW } };
     if (n.kind === "other" && !showOther.checked) { node.classes = "folded"; }
     return node;
   }
 
   function edgeElement(e) {
     return { group: "edges", data: { id: e.id, source: e.source, target: e.target, label: e.label } };
+  }
+
+  /* Lanes top to bottom, only those with a node drawn, each laneHeight below the last: a kind filtered out or
+   * folded leaves no empty band. Nodes keep their rows; only their heights change. */
+  function arrange() {
+    var slot = 0;
+    laneSlots = {};
+    LANES.forEach(function (kind) {
+      if (shown().filter("[kind = '" + kind + "']").nonempty()) { laneSlots[kind] = slot++; }
+    });
+    cy.batch(function () {
+      cy.nodes().forEach(function (n) {
+        var lane = laneSlots[n.data("kind")];
+        n.position("y", (lane === undefined ? slot : lane) * laneHeight + n.data("row") * SUB_ROW);
+      });
+    });
+    lightEdges(); // the lit edges' labels have moved
+  }
+
+  /* Edges of the hubs (robots, humans, models) are faded: each reaches much of the drawing. */
+  function markHubEdges(edges) {
+    edges.forEach(function (e) {
+      if (STANDING[e.source().data("kind")] || STANDING[e.target().data("kind")]) { e.addClass("hub"); }
+    });
+  }
+
+  /* The edges of the nodes hovered, focused or selected are lit, with their labels; a label that would cover
+   * one already placed is left out (its edge stays lit), so the labels shown can all be read. */
+  function lightEdges() {
+    var lit = cy.nodes(".hover, .focused, :selected").connectedEdges();
+    cy.edges(".lit").difference(lit).removeClass("lit label-left-out");
+    lit.addClass("lit").removeClass("label-left-out");
+    if (large) { return; } // edges carry no labels there
+    var placed = [];
+    lit.forEach(function (e) {
+      var box = labelBox(e);
+      if (placed.some(function (other) { return overlap(box, other); })) { e.addClass("label-left-out"); }
+      else { placed.push(box); }
+    });
+  }
+
+  var measure = document.createElement("canvas").getContext("2d");
+
+  /* Where an edge's label is drawn (model units): its text's width along the edge, centred on the edge's middle
+   * and turned with it, as the box around that. Measured here, not asked of cytoscape.js, which sizes a label
+   * only once it has been drawn on screen. */
+  function labelBox(edge) {
+    var size = edge.pstyle("font-size").pfValue;
+    measure.font = size + "px " + edge.pstyle("font-family").strValue;
+    var half = { w: measure.measureText(String(edge.data("label"))).width / 2 + 3, h: size / 2 + 2 };
+    var from = edge.source().position(), to = edge.target().position();
+    var middle = { x: (from.x + to.x) / 2, y: (from.y + to.y) / 2 }; // parallel edges bend away: conservative
+    var angle = Math.atan2(to.y - from.y, to.x - from.x);
+    var cos = Math.abs(Math.cos(angle)), sin = Math.abs(Math.sin(angle));
+    var dx = half.w * cos + half.h * sin, dy = half.w * sin + half.h * cos;
+    return { x1: middle.x - dx, x2: middle.x + dx, y1: middle.y - dy, y2: middle.y + dy };
+  }
+
+  function overlap(a, b) {
+    return a.x1 < b.x2 && b.x1 < a.x2 && a.y1 < b.y2 && b.y1 < a.y2;
   }
 
   function style(large) {
@@ -167,9 +246,9 @@
         "text-valign": "bottom", "text-margin-y": 3, "width": 18, "height": 18,
         "text-wrap": "ellipsis", "text-max-width": 130 } }
     ].concat(byKind, [
-      { selector: "node[kind = 'robot']", style: Object.assign({ "shape": "round-rectangle", "width": 34, "height": 26,
+      { selector: "node[kind = 'robot']", style: Object.assign({ "shape": "round-rectangle", "width": 30, "height": 22,
         "font-weight": "bold", "font-size": 14 }, labelled) },
-      { selector: "node[kind = 'human']", style: Object.assign({ "width": 30, "height": 30, "font-weight": "bold",
+      { selector: "node[kind = 'human']", style: Object.assign({ "width": 24, "height": 24, "font-weight": "bold",
         "font-size": 14 }, labelled) },
       { selector: "node[kind = 'message']", style: Object.assign({ "shape": "round-rectangle", "font-size": 12 }, labelled) },
       { selector: "node[kind = 'shared-event']", style: { "shape": "diamond" } },
@@ -185,8 +264,14 @@
       { selector: "edge", style: large ? {
         "curve-style": "haystack", "width": 1, "line-color": "#c3cad6", "opacity": 0.7 } : {
         "curve-style": "bezier", "width": 1.2, "line-color": "#b8c0cc", "target-arrow-shape": "triangle",
-        "target-arrow-color": "#b8c0cc", "arrow-scale": 0.8, "label": "data(label)", "font-size": 8,
-        "min-zoomed-font-size": 10, "color": "#5b6478", "text-rotation": "autorotate" } },
+        "target-arrow-color": "#b8c0cc", "arrow-scale": 0.8, "font-size": 9, "min-zoomed-font-size": 7,
+        "color": "#3d4557", "text-rotation": "autorotate", "text-background-color": "#ffffff",
+        "text-background-opacity": 0.85, "text-background-padding": 1 } },
+      { selector: "edge.hub", style: { "opacity": 0.12 } },
+      { selector: "edge.lit", style: { "opacity": 1, "line-color": "#5b6478", "target-arrow-color": "#5b6478",
+        "width": 1.6, "z-index": 10 } },
+      { selector: "edge.lit", style: large ? {} : { "label": "data(label)" } }, // thousands: no edge labels
+      { selector: "edge.lit.label-left-out", style: { "label": "" } },
       { selector: "edge:selected", style: { "line-color": "#f4511e", "width": 2.5 } }
     ]);
   }
@@ -206,7 +291,7 @@
     stats.dataset.folded = String(hidden);
     stats.dataset.truncated = String(truncated);
     otherCount.textContent = cy.nodes("[kind = 'other']").length + " other";
-    refreshLanes();
+    placeLanes();
   }
 
   /* Lane names: an overlay at the left of the drawing, kept beside its lane through pan and zoom. */
@@ -219,38 +304,43 @@
     });
   }
 
-  function refreshLanes() {
-    LANES.forEach(function (kind) { lanesInUse[kind] = shown().filter("[kind = '" + kind + "']").nonempty(); });
-    placeLanes();
-  }
-
+  /* Each lane's name where its nodes are: in the room above its first row when the zoom leaves that room,
+   * else across the middle of its rows (the rows are then thinner than the name). */
   function placeLanes() {
     var zoom = cy.zoom(), pan = cy.pan(), height = container.clientHeight;
-    LANES.forEach(function (kind, i) {
-      var top = i * LANE_HEIGHT * zoom + pan.y - 30;
-      var item = laneItems[kind];
-      item.hidden = !lanesInUse[kind] || top < -20 || top > height;
+    LANES.forEach(function (kind) {
+      var item = laneItems[kind], slot = laneSlots[kind];
+      item.hidden = slot === undefined;
+      if (item.hidden) { return; }
+      var tall = item.offsetHeight || 14;
+      var first = (slot * laneHeight) * zoom + pan.y;
+      var rows = (SUB_ROWS - 1) * SUB_ROW * zoom, half = NODE_SIZE / 2 * zoom;
+      var room = (laneHeight - (SUB_ROWS - 1) * SUB_ROW - NODE_SIZE) * zoom;
+      var top = room >= tall + 4 ? first - half - tall - 2 : first + rows / 2 - tall / 2;
+      item.hidden = top + tall < 0 || top > height;
       item.style.transform = "translateY(" + Math.round(top) + "px)";
     });
   }
 
-  /* The whole drawing if it can be read at that zoom; else its beginning (left, top) at a readable zoom. */
+  /* Every lane in view, at a zoom where labels can be read if the box is tall enough for that: the whole
+   * drawing when it fits at that zoom, else its beginning (left), all lanes top to bottom. */
   function initialView() {
     var drawn = shown();
     if (drawn.empty()) { return; }
-    cy.fit(drawn, 40);
+    cy.fit(drawn, 30);
     viewNote = "";
     if (cy.zoom() < READABLE_ZOOM) {
       var box = drawn.boundingBox();
-      cy.zoom(READABLE_ZOOM);
-      cy.pan({ x: 40 - box.x1 * READABLE_ZOOM, y: 40 - box.y1 * READABLE_ZOOM });
-      viewNote = " · showing the start at a readable zoom: drag, use the arrow keys or Fit to see the rest";
+      var zoom = Math.max(cy.zoom(), Math.min(READABLE_ZOOM, (container.clientHeight - 40) / box.h));
+      cy.zoom(zoom);
+      cy.pan({ x: 30 - box.x1 * zoom, y: (container.clientHeight - box.h * zoom) / 2 - box.y1 * zoom });
+      viewNote = " · showing the start: drag, use the arrow keys or Fit to see the rest";
     }
   }
 
   function draw(data) {
     truncated = data.truncated;
-    var large = data.nodes.length > LARGE;
+    large = data.nodes.length > LARGE;
     var positions = layout(data.nodes, data.edges, null);
     cy = cytoscape({
       container: container,
@@ -262,9 +352,12 @@
       renderer: { name: "canvas", webgl: large && WEBGL },
       boxSelectionEnabled: false
     });
+    arrange();
+    markHubEdges(cy.edges());
     cy.on("tap", "node", function (event) { setFocus(event.target, false); openPanel(event.target.id(), false); });
-    cy.on("mouseover", "node", function (event) { event.target.addClass("hover"); });
-    cy.on("mouseout", "node", function (event) { event.target.removeClass("hover"); });
+    cy.on("mouseover", "node", function (event) { event.target.addClass("hover"); lightEdges(); });
+    cy.on("mouseout", "node", function (event) { event.target.removeClass("hover"); lightEdges(); });
+    cy.on("select unselect", "node", lightEdges);
     cy.on("viewport", placeLanes);
     initialView();
     cy.one("render", function () {
@@ -300,7 +393,10 @@
   function focusNode(id, moveFocus) {
     var node = cy.getElementById(id);
     if (!node || node.empty()) { return false; }
-    node.removeClass("folded"); // a node asked for by name is shown even while its kind is folded
+    if (node.hasClass("folded")) {
+      node.removeClass("folded"); // a node asked for by name is shown even while its kind is folded
+      arrange();
+    }
     cy.nodes(".found").removeClass("found");
     cy.$(":selected").unselect();
     node.addClass("found").select();
@@ -333,7 +429,8 @@
       return fresh.some(function (n) { return n.id === e.source || n.id === e.target; });
     }), anchor);
     cy.add(fresh.map(function (n) { return nodeElement(n, positions[n.id]); }));
-    cy.add(data.edges.filter(function (e) { return cy.getElementById(e.id).empty(); }).map(edgeElement));
+    markHubEdges(cy.add(data.edges.filter(function (e) { return cy.getElementById(e.id).empty(); }).map(edgeElement)));
+    arrange();
     updateStats();
     refreshList();
     return fresh;
@@ -357,6 +454,7 @@
   function setFocus(node, bringIntoView) {
     if (focused && !focused.removed()) { focused.removeClass("focused"); }
     focused = node.addClass("focused");
+    lightEdges();
     if (bringIntoView) {
       var at = node.renderedPosition();
       if (at.x < 40 || at.y < 40 || at.x > container.clientWidth - 40 || at.y > container.clientHeight - 40) {
@@ -399,8 +497,30 @@
     announce.textContent = "Zoom " + Math.round(cy.zoom() * 100) + " %";
   }
 
+  /* Where the nodes are, their labels left out: most are not drawn at the zoom that shows everything. */
+  function nodesBox(nodes) {
+    return nodes.boundingBox({ includeLabels: false, includeOverlays: false, includeUnderlays: false });
+  }
+
+  /* The whole drawing, filling the box: a drawing wider than the box leaves the box's height empty at the
+   * zoom that fits its width, so the lanes are first moved apart (up to MAX_LANE_STRETCH) to fill it. */
   function fitAll() {
-    cy.fit(shown(), 40);
+    var drawn = shown();
+    if (drawn.empty()) { return; }
+    laneHeight = LANE_HEIGHT;
+    arrange();
+    var box = nodesBox(drawn), lanes = Object.keys(laneSlots).length;
+    var width = container.clientWidth - 2 * FIT_PADDING, height = container.clientHeight - 2 * FIT_PADDING;
+    if (lanes > 1 && box.w / box.h > width / height) {
+      var wanted = (box.w * height / width - (box.h - (lanes - 1) * laneHeight)) / (lanes - 1);
+      laneHeight = Math.min(LANE_HEIGHT * MAX_LANE_STRETCH, Math.max(LANE_HEIGHT, wanted));
+      arrange();
+      box = nodesBox(drawn);
+    }
+    var zoom = Math.max(cy.minZoom(), Math.min(cy.maxZoom(), width / Math.max(box.w, 1), height / Math.max(box.h, 1)));
+    cy.viewport({ zoom: zoom, pan: { x: (container.clientWidth - box.w * zoom) / 2 - box.x1 * zoom,
+      y: (container.clientHeight - box.h * zoom) / 2 - box.y1 * zoom } });
+    placeLanes();
     announce.textContent = "The whole drawing, zoom " + Math.round(cy.zoom() * 100) + " %";
   }
 
@@ -475,7 +595,7 @@
     var seen = {};
     statements.forEach(function (s) {
       if (!s.is_literal) {
-        var key = s.predicate + "\n" + (s.label || s.value);
+        var key = s.predicate + "\n" + readable(s.value, s.label);
         seen[key] = (seen[key] || 0) + 1;
       }
     });
@@ -487,7 +607,7 @@
       if (s.is_literal) {
         cell.textContent = String(s.value) + (s.language ? " @" + s.language : "");
       } else {
-        var link = el("a", s.label || s.value);
+        var link = el("a", readable(s.value, s.label));
         link.href = "#";
         link.title = String(s.value);
         link.addEventListener("click", function (event) {
@@ -495,7 +615,7 @@
           if (!focusNode(String(s.value), true)) { openPanel(String(s.value), true); }
         });
         cell.appendChild(link);
-        if (seen[s.predicate + "\n" + (s.label || s.value)] > 1) {
+        if (seen[s.predicate + "\n" + readable(s.value, s.label)] > 1 && compact(s.value) !== String(s.value)) {
           cell.appendChild(el("span", " " + compact(s.value), "muted vocabulary"));
         }
       }
@@ -506,20 +626,45 @@
     return section;
   }
 
+  /* A resource as the drawing labels it (which Maria; whose state, when), else by its name. */
+  function named(iri, label) {
+    var drawn = cy ? cy.getElementById(iri) : null;
+    return drawn && drawn.nonempty() ? drawn.data("label") : readable(iri, label);
+  }
+
+  /* A node's heading: its name; a shared event, which has none, by what it is about, when and its words. */
+  function title(resource) {
+    if (resource.kind !== "shared-event") { return named(resource.iri, resource.label); }
+    var about = resource.outgoing.filter(function (s) { return /[\/#]about$/.test(s.predicate) && !s.is_literal; })
+      .map(function (s) { return named(s.value, s.label); });
+    var words = resource.outgoing.filter(function (s) { return s.is_literal && /[\/#]description$/.test(s.predicate); });
+    return "Shared event" + (about.length ? " about " + about.join(", ") : "") +
+      (resource.time ? " at " + resource.time.replace(/^.*T/, "").replace(/Z$/, "") : "") +
+      (words.length ? " — “" + words[0].value + "”" : "");
+  }
+
   function openPanel(id, moveFocus) {
     panel.replaceChildren(el("p", "Loading…", "muted"));
     fetchJson("/kg-graph/resource?" + new URLSearchParams({ iri: id })).then(function (resource) {
       var parts = [];
-      var heading = el("h2", resource.label);
+      var heading = el("h2", title(resource));
       heading.tabIndex = -1;
+      heading.title = resource.iri;
       parts.push(heading);
       var kind = el("p");
       kind.appendChild(el("span", null, "swatch kind-" + resource.kind));
       kind.appendChild(document.createTextNode(resource.kind + (resource.time ? " · " + resource.time : "")));
       parts.push(kind);
-      parts.push(el("p", resource.iri, "muted panel-iri"));
       if (resource.types.length) { parts.push(el("p", "Types: " + resource.types.join(", "))); }
       var actions = el("div", null, "actions");
+      // The IRI is an id: on hover and to copy, not in the text.
+      var copy = el("button", "Copy IRI", "secondary panel-iri");
+      copy.type = "button";
+      copy.title = resource.iri;
+      copy.addEventListener("click", function () {
+        if (!navigator.clipboard) { return; }
+        navigator.clipboard.writeText(resource.iri).then(function () { copy.textContent = "IRI copied"; }, function () {});
+      });
       var explain = el("a", "Explain", "button");
       explain.href = "/explain?" + new URLSearchParams({ iri: resource.iri });
       var grow = el("button", "Expand neighbours", "secondary");
@@ -532,6 +677,7 @@
       });
       actions.appendChild(explain);
       actions.appendChild(grow);
+      actions.appendChild(copy);
       parts.push(actions);
       parts.push(statementTable("Outgoing", resource.outgoing));
       parts.push(statementTable("Incoming", resource.incoming));
@@ -557,6 +703,7 @@
     if (!cy) { return; }
     var others = cy.nodes("[kind = 'other']");
     if (showOther.checked) { others.removeClass("folded"); } else { others.not(":selected").addClass("folded"); }
+    arrange();
     updateStats();
     refreshList();
   });

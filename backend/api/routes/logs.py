@@ -63,7 +63,8 @@ class LogEntries(BaseModel):
         "The server's structured log, newest first: one entry per request (id, method, path, status, duration, "
         "user, client address, triples written) and every warning or error of the server. `level` keeps that "
         "level and above (blank: every level); `contains` keeps entries holding that text in any field (any "
-        "case). Reads the rotated backups too when `limit` needs them. Tokens and bodies are never logged. "
+        "case); `offset` skips that many of the matching entries (the next page starts at `offset + limit`). "
+        "Reads the rotated backups too when `offset + limit` needs them. Tokens and bodies are never logged. "
         "The reference backend's fields are there too: `log_file`, `count`, `filters`, and per entry "
         "`timestamp`, `actor`, `origin_ip` and `raw`."
     ),
@@ -76,6 +77,9 @@ def server_log(
         None, pattern=LEVEL_PATTERN, description=f"Lowest level shown: {', '.join(LEVELS)} (any case)."
     ),
     contains: str | None = Query(None, max_length=200, description="Text the entry must hold (any case)."),
+    offset: int = Query(
+        0, ge=0, le=MAX_ENTRIES, description=f"Matching entries to skip, newest first (0 to {MAX_ENTRIES}): pages."
+    ),
 ) -> dict[str, Any]:
     # A plain `def` route runs in the thread pool, so reading the log files stays off the event loop.
     log = services.server_log
@@ -83,11 +87,11 @@ def server_log(
         raise NotFound("This server keeps no log.")
     lowest = level.upper() if level else None
     needle = contains.strip() if contains and contains.strip() else None
-    entries = log.read(limit, lowest or LEVELS[0], needle)
+    entries = log.read(offset + limit, lowest or LEVELS[0], needle)[offset:]
     return {
         "log_file": log.file,
         "count": len(entries),
-        "filters": {"limit": limit, "level": lowest, "contains": needle},
+        "filters": {"limit": limit, "level": lowest, "contains": needle},  # the reference's three
         "entries": entries,
         "source": log.source,
     }

@@ -12,7 +12,7 @@ from pyoxigraph import NamedNode
 from segb_server.backend.api.deps import Admin, ServicesDep
 from segb_server.backend.services.formats import PERSON_EXPORTS, names, negotiate
 from segb_server.backend.services.graph.export import write_graph
-from segb_server.backend.services.people.erasure import MAX_REASON
+from segb_server.backend.services.people.erasure import MAX_REASON, ErasurePreview
 from segb_server.backend.services.people.story_page import PAGE_POLICY, story_page
 from segb_server.backend.services.sparql.catalog import Parameter, to_term
 
@@ -22,9 +22,36 @@ router = APIRouter(tags=["people"])
 class ErasureRequest(BaseModel):
     iri: str = Field(description="The person's IRI, as the robots logged it (e.g. …/human_maria).", max_length=2000)
     reason: str = Field(
-        description="Why (kept in the ledger for good, in the erasure's record: do not name the person).",
+        "",
+        description="Why (kept in the ledger for good, in the erasure's record: do not name the person). Required "
+        "unless `dry_run`.",
         max_length=MAX_REASON,
     )
+    dry_run: bool = Field(False, description="Only say what the erasure would take; nothing is written.")
+
+
+class ErasurePreviewAnswer(BaseModel):
+    dry_run: bool = Field(True, description="Always true: nothing was written.")
+    message: str
+    iri: str
+    resources: int = Field(description="Resources the erasure would take, the person included.")
+    kinds: dict[str, int] = Field(
+        description="Those resources by kind: human, message, emotion (annotations and emotions), shared-event, "
+        "observation, procedure, property, state, …"
+    )
+    triples: int = Field(description="Triples of the store naming one of them (as subject or object).")
+    left_out: int = Field(
+        description="Resources the rule reached but would leave alone: an agent (a person, a robot), a class or a "
+        "predicate linked to the person's resources, or what was reached only through one of them."
+    )
+
+    @classmethod
+    def of(cls, preview: ErasurePreview) -> ErasurePreviewAnswer:
+        return cls(
+            message=f"Would erase {preview.resources} resources ({preview.triples} triples); nothing was written.",
+            iri=preview.human, resources=preview.resources, kinds=preview.kinds, triples=preview.triples,
+            left_out=preview.left_out,
+        )  # fmt: skip
 
 
 class ErasureAnswer(BaseModel):
@@ -51,7 +78,7 @@ class ErasureAnswer(BaseModel):
 
 @router.post(
     "/humans/erase",
-    response_model=ErasureAnswer,
+    response_model=ErasureAnswer | ErasurePreviewAnswer,
     summary="Erase one person everywhere",
     description=(
         "Erases a person (GDPR Art. 17) from the store, every view, the journal's posts, the shared contexts, the "
@@ -60,12 +87,18 @@ class ErasureAnswer(BaseModel):
         "What others said stays; a robot's reply stays and loses its links to what was erased. The erasure is "
         "one entry of the ledger (who, when, why, which posts, how many triples), which keeps verifying. "
         "A robot re-sending the erased triples later has them held back (counted as `triples_withheld`). "
-        "404 when nothing about the IRI is held; 422 for an IRI that is not absolute or an empty reason."
+        "It takes only what concerns that person: each link the rule follows must lead to a resource of the "
+        "expected kind, and never to another agent (a person, a robot), a class or a predicate. "
+        "With `dry_run: true` it answers what the erasure would take, counted by kind, and writes nothing. "
+        "404 when nothing about the IRI is held; 422 for an IRI the log does not type as a person (oro:Human, "
+        "foaf:Person, prov:Person), a class or a predicate, an IRI that is not absolute or an empty reason."
     ),
 )
-def erase_human(body: ErasureRequest, services: ServicesDep, principal: Admin) -> ErasureAnswer:
+def erase_human(body: ErasureRequest, services: ServicesDep, principal: Admin) -> ErasureAnswer | ErasurePreviewAnswer:
     # A plain `def` route runs in the thread pool: the erasure reads and writes the journal and the store.
     iri = to_term(Parameter("iri", "iri"), body.iri.strip()).value
+    if body.dry_run:
+        return ErasurePreviewAnswer.of(services.erasure.preview(iri))
     done = services.erasure.erase_human(iri, body.reason, principal.username)
     record = done.receipt
     return ErasureAnswer(

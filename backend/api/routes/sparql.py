@@ -11,10 +11,12 @@ from segb_server.backend.api.deps import Auditor, LimitedBody, ServicesDep
 from segb_server.backend.api.errors import ReferenceQueryRefused
 from segb_server.backend.api.sparql_protocol import ProtocolRequest, from_get, from_post
 from segb_server.backend.services.container import Services
+from segb_server.backend.services.csv_cells import spreadsheet_safe_answer
 from segb_server.backend.services.errors import InvalidQuery, ServiceError
 from segb_server.backend.services.formats import GRAPHS, SOLUTIONS, Format, format_hint, names, negotiate
 from segb_server.backend.services.sparql.answers import formats_for, rows_as_turtle, run_and_write, write_in
-from segb_server.backend.services.sparql.guard import MAX_QUERY_BYTES, CheckedQuery, guard_query
+from segb_server.backend.services.sparql.checkers import guard_user_query
+from segb_server.backend.services.sparql.guard import MAX_QUERY_BYTES, MAX_QUERY_TERMS, CheckedQuery
 from segb_server.backend.services.sparql.limits import QueryLimits
 from segb_server.backend.services.text import UnicodeModel
 
@@ -47,10 +49,11 @@ async def _answer(services: Services, request: ProtocolRequest, accept: str | No
 
     def work() -> tuple[bytes, bool, Format]:
         request.check_dataset(store.graph_uri)
-        checked = guard_query(request.query, store.graph_uri)
+        limits = limits_of(services)  # checking the query counts against its time limit
+        checked = guard_user_query(request.query, store.graph_uri, limits)
         fmt = _choose(checked, request, accept)  # before running: an unacceptable request costs no query
-        body, truncated = run_and_write(services.queries, checked, limits_of(services), write_in(fmt))
-        return body, truncated, fmt
+        body, truncated = run_and_write(services.queries, checked, limits, write_in(fmt))
+        return spreadsheet_safe_answer(body, fmt.media_type), truncated, fmt
 
     # Checking (rdflib parsing) and the query itself are blocking work.
     body, truncated, fmt = await run_in_threadpool(work)
@@ -62,8 +65,10 @@ _PROTOCOL_DESCRIPTION = (
     "Read-only [SPARQL 1.1 Protocol](https://www.w3.org/TR/sparql11-protocol/) endpoint over the events graph, "
     "which is every query's default graph (there are no named graphs). SELECT and ASK answer "
     "`application/sparql-results+json` (default), `application/sparql-results+xml`, `text/csv` or "
-    "`text/tab-separated-values`; CONSTRUCT and DESCRIBE answer `text/turtle` (default), "
-    "`application/n-triples`, `application/ld+json`, `application/rdf+xml` or `text/n3`. Chosen by `Accept`, or "
+    "`text/tab-separated-values` (in CSV and TSV, a text a spreadsheet would run as a formula, such as "
+    "`=HYPERLINK(…)`, starts with an apostrophe, as in the reports' CSV); CONSTRUCT and DESCRIBE answer "
+    "`text/turtle` (default), `application/n-triples`, `application/ld+json`, `application/rdf+xml` or "
+    "`text/n3`. Chosen by `Accept`, or "
     f"by `?format=` ({FORMAT_NAMES}, or a media type), read as a hint as stock clients send it: repeats must agree, "
     "a value naming no format is ignored (then `Accept` decides), and `xml` or `json` ask for RDF/XML or JSON-LD "
     "when the answer is a graph. 406 when nothing acceptable fits the query form.\n\n"
@@ -72,10 +77,11 @@ _PROTOCOL_DESCRIPTION = (
     "by IRI outside XSD and XPath (`extension_function`), `FROM`/`FROM NAMED`/dataset parameters naming anything "
     "but the events graph (`dataset`), `GRAPH` patterns (`graph`), undeclared prefixes (`undeclared_prefix`), "
     "`query` given more than once (`multiple_queries`) and "
-    f"syntax errors (`syntax`, with `line` and `column`). Queries over {MAX_QUERY_BYTES} bytes get 413.\n\n"
+    f"syntax errors (`syntax`, with `line` and `column`). Queries over {MAX_QUERY_BYTES} bytes (`too_long`) or "
+    f"with more than {MAX_QUERY_TERMS} operators, commas and brackets (`too_complex`) get 413.\n\n"
     "Limits: an answer holds at most `SPARQL_MAX_ROWS` rows (or triples); a longer one is cut there and carries "
-    "`X-SEGB-Truncated: true`. A query still running after `SPARQL_TIMEOUT_SECONDS` is stopped: 503 with "
-    "`error: query_timeout`."
+    "`X-SEGB-Truncated: true`. A query still being checked or running after `SPARQL_TIMEOUT_SECONDS` is "
+    "stopped: 503 with `error: query_timeout`."
 )
 
 
@@ -154,11 +160,12 @@ async def query_reference(
     query: str = Query(..., description="The SPARQL query (SELECT, ASK, CONSTRUCT or DESCRIBE)."),
 ) -> Response:
     def work() -> tuple[bytes, bool]:
+        limits = limits_of(services)
         try:
-            checked = guard_query(query, services.store.graph_uri)
+            checked = guard_user_query(query, services.store.graph_uri, limits)
         except InvalidQuery as refused:
             raise ReferenceQueryRefused(refused.message, **refused.details) from None
-        return run_and_write(services.queries, checked, limits_of(services), rows_as_turtle)
+        return run_and_write(services.queries, checked, limits, rows_as_turtle)
 
     body, truncated = await run_in_threadpool(work)
     return Response(body, media_type="text/turtle; charset=utf-8", headers=limit_headers(truncated, services))
@@ -196,7 +203,7 @@ async def validate_query(services: ServicesDep, principal: Auditor, payload: Val
 
     def work() -> QueryValidation:
         try:
-            checked: CheckedQuery = guard_query(payload.query, graph_uri)
+            checked: CheckedQuery = guard_user_query(payload.query, graph_uri, limits_of(services))
         except ServiceError as error:
             kind = str(error.details.get("query_kind") or "unknown")
             return QueryValidation(

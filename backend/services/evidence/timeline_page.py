@@ -5,11 +5,10 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
-from jinja2 import Environment
-
+from segb_server.backend.services.direction_controls import page_environment
 from segb_server.backend.services.values import JsonValue
 
-_PAGE = Environment(autoescape=True).from_string(
+_PAGE = page_environment().from_string(
     """<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>Timeline — {{ title }}</title>
 <link rel="icon" href="data:,"><style>

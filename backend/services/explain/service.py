@@ -1,22 +1,28 @@
 """Why did the robot do that? The causal chain around one message, activity, emotion or state.
 
-From the seed, the walk goes backwards along what triggered each activity (`segb:triggeredByActivity`,
-`segb:triggeredByEntity`, the activity that generated a triggering message, `prov:wasDerivedFrom`) and
-forwards along what it triggered, then tells each activity as one step of a story in time order: who
-performed it, what was heard or said, which models it used, which emotions it read, which shared event
-and human it was about. Nodes are read with `GraphService.summaries`, a batch at a time (every node the walk may
-read next): from the graph index, which keeps the links and the literals told here (`TOLD_LITERALS`), so an
-explanation costs a few indexed SQLite queries whatever the size or load of the store; from the store (two
-bound queries a batch) while the index is first built.
+From the seed, the walk goes upstream along the provenance links that say where an activity came from
+(`segb:triggeredByActivity`, `segb:triggeredByEntity`, the activity that generated a triggering message,
+`prov:wasDerivedFrom`: the rule of reading `CAUSE_LINKS`) for its causes, and downstream along the same links for its
+effects; what the walk then meets beside them (another cause of an effect, an activity about the same shared event)
+is related, neither cause nor effect, whatever its time. Each activity is told as one step of a story in time order:
+who performed it, what was heard or said, which models it used, which emotions it read, which shared event and
+human it was about. Who spoke, whether an emotion was read on someone or expressed, and an activity's kind are the
+rules of reading (backend/reading.py). Nodes are read with `GraphService.summaries`, a batch at a time (every node
+the walk may read next): from the graph index, which keeps the links and the literals told here (`TOLD_LITERALS`), so
+an explanation costs a few indexed SQLite queries whatever the size or load of the store; from the store (two bound
+queries a batch) while the index is first built.
 """
 
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from segb_server.backend.reading import HEARD_MESSAGE, activity_kind, speaker, target_kind
 from segb_server.backend.services.errors import NotFound
+from segb_server.backend.services.graph.facts import normal_time
 from segb_server.backend.services.graph.service import GraphService, local_name
 from segb_server.backend.vocabulary import PERFORMED_BY, PREFIXES
 
@@ -34,20 +40,9 @@ DERIVED_FROM = PROV + "wasDerivedFrom"
 USED_MODEL = SEGB + "usedMLModel"
 ABOUT = SCHEMA + "about"
 SENDER = SCHEMA + "sender"
-INITIAL_MESSAGE = ORO + "InitialMessage"  # a human's input, as the robots' client types it
 HAS_EMOTION = ONYX + "hasEmotion"
 HAS_TARGET = OA + "hasTarget"
 
-# Activity kinds by type, most specific first (emotion annotations add onyx:EmotionAnalysis to any activity).
-ACTIVITY_KINDS = [
-    (ORO + "ResponseAction", "response"),
-    (ORO + "ListeningEvent", "listening"),
-    (ORO + "DecisionMakingAction", "decision"),
-    (ORO + "DetectedHumanEvent", "human-detection"),
-    (ORO + "EmotionRecognitionEvent", "emotion-recognition"),
-    (MLS + "Run", "ml-run"),
-    (ONYX + "EmotionAnalysis", "emotion-analysis"),
-]
 FEATURE_OF_INTEREST = SOSA + "hasFeatureOfInterest"
 # The only links the walk follows backwards: a robot, human or model is the object of a link from each of its
 # activities (hundreds of thousands after a month), and none of those is read to tell a story.
@@ -111,6 +106,7 @@ class Step:
     emotions: list[dict[str, Any]] = field(default_factory=list)
     events: list[dict[str, Any]] = field(default_factory=list)
     triggered_by: list[str] = field(default_factory=list)
+    triggered_by_named: list[dict[str, str]] = field(default_factory=list)  # the same, each with a display name
 
 
 class ExplainService:
@@ -126,36 +122,45 @@ class ExplainService:
             if not known["outgoing"] and not known["incoming"]:
                 raise NotFound(f"Nothing is known about <{iri}>.")
         seed_activities = reader.activities_of(seed)
-        order = self._walk(reader, seed_activities)
-        steps = [reader.step(activity) for activity in order]
+        roles = self._walk(reader, seed_activities)
+        steps = [reader.step(activity) for activity in roles]
         for step in steps:
-            step.role = "seed" if step.activity in seed_activities else "context"
+            step.role = roles[step.activity]
         steps.sort(key=lambda step: (step.time or "~", step.activity))
-        seen_seed = False
-        for step in steps:
-            if step.role == "seed":
-                seen_seed = True
-            elif step.role == "context":
-                step.role = "effect" if seen_seed else "cause"
         return {
             "iri": iri,
-            "seed": {"iri": seed.iri, "label": seed.label, "kind": seed.kind},
+            "seed": {"iri": seed.iri, "label": self._seed_label(reader, seed), "kind": seed.kind},
             "steps": [step.__dict__ for step in steps],
-            "truncated": len(order) >= MAX_ACTIVITIES,
+            "truncated": len(roles) >= MAX_ACTIVITIES,
         }
 
-    def _walk(self, reader: _Reader, seeds: list[str]) -> list[str]:
-        depth = dict.fromkeys(seeds, 0)
-        queue = deque(seeds)
-        while queue and len(depth) < MAX_ACTIVITIES:
+    @staticmethod
+    def _seed_label(reader: _Reader, seed: Resource) -> str:
+        return reader.activity_name(seed.iri) if seed.kind == "activity" else seed.label
+
+    def _walk(self, reader: _Reader, seeds: list[str]) -> dict[str, str]:
+        """Each activity of the story with its role: "seed", "cause" (upstream of a seed along the provenance
+        links), "effect" (downstream), or "related" (reached through both directions: another cause of an
+        effect, an effect of a cause)."""
+        roles = dict.fromkeys(seeds, "seed")
+        for role, follow in (("cause", reader.causes), ("effect", reader.effects)):
+            self._spread(roles, seeds, role, follow)
+        self._spread(roles, list(roles), "related", lambda iri: reader.causes(iri) + reader.effects(iri))
+        return roles
+
+    @staticmethod
+    def _spread(roles: dict[str, str], start: list[str], role: str, follow: Callable[[str], list[str]]) -> None:
+        depth = dict.fromkeys(start, 0)
+        queue = deque(start)
+        while queue and len(roles) < MAX_ACTIVITIES:
             current = queue.popleft()
             if depth[current] >= MAX_DEPTH:
                 continue
-            for neighbour in reader.causes(current) + reader.effects(current):
-                if neighbour not in depth and len(depth) < MAX_ACTIVITIES:
+            for neighbour in follow(current):
+                if neighbour not in depth and len(roles) < MAX_ACTIVITIES:
                     depth[neighbour] = depth[current] + 1
+                    roles.setdefault(neighbour, role)
                     queue.append(neighbour)
-        return list(depth)
 
 
 class _Reader:
@@ -219,25 +224,36 @@ class _Reader:
                 found += self.activities_of(self.get(later))
         return [iri for iri in dict.fromkeys(found) if iri != activity]
 
+    def activity_name(self, activity: str) -> str:
+        """An activity as a reader names it: its robot's name and its label (or kind), never its IRI."""
+        node = self.get(activity)
+        performers = node.out(PERFORMED_BY)
+        what = node.literal(RDFS + "label") or activity_kind(node.types()).replace("-", " ")
+        return f"{self.get(performers[0]).label}: {what}" if performers else str(what)
+
     def name(self, iri: str) -> dict[str, str]:
         return {"iri": iri, "label": self.get(iri).label}
 
     def step(self, activity: str) -> Step:
         node = self.get(activity)
         types = node.types()
-        kind = next((name for cls, name in ACTIVITY_KINDS if cls in types), "activity")
+        kind = activity_kind(types)
         performers = node.out(PERFORMED_BY)
         step = Step(
             activity=activity,
-            time=node.body.get("time"),
+            time=_time(node),
             kind=kind,
             robot=self.name(performers[0]) if performers else None,
             label=node.literal(RDFS + "label"),
             triggered_by=self.causes(activity),
         )
+        step.triggered_by_named = [{"iri": cause, "label": self.activity_name(cause)} for cause in step.triggered_by]
         listening = ORO + "ListeningEvent" in types
-        for entity in self.produced(activity):
-            self._add_result(step, self.get(entity), listening)
+        produced = [self.get(entity) for entity in self.produced(activity)]
+        for entity in produced:
+            self._add_result(step, entity, listening)
+        if step.time is None:  # an activity logged without a time happened when what it produced did
+            step.time = min(filter(None, (_time(entity) for entity in produced)), default=None)
         for model in node.out(USED_MODEL):
             described = self.get(model)
             step.models.append({**self.name(model), "version": described.literal(SCHEMA + "version")})
@@ -250,7 +266,13 @@ class _Reader:
         if entity.kind == "message":
             senders = entity.out(SENDER)
             sender = self.name(senders[0]) if senders else None
-            message = {"iri": entity.iri, "text": entity.literal(SCHEMA + "text"), "sender": sender}
+            message = {
+                "iri": entity.iri,
+                "text": entity.literal(SCHEMA + "text"),
+                "sender": sender,
+                # The rule of reading for an event's time: its own, else its activity's
+                "time": _time(entity) or step.time,
+            }
             robot_said = self._said_by_robot(entity, senders, step.robot, listening)
             (step.said if robot_said else step.heard).append(message)
         elif entity.kind == "emotion":
@@ -271,23 +293,16 @@ class _Reader:
     def _said_by_robot(
         self, message: Resource, senders: list[str], robot: dict[str, str] | None, listening: bool
     ) -> bool:
-        """The conversations report's rule for its `speaker` (sparql/reports/conversations.rq): the robot said a
-        message it sent, or one whose log names no sender and does not mark it as heard (a human's input, or
-        what a listening activity produced). A human sender, or words heard from someone unnamed, are heard.
-        Read over the explanation's resources, not from the report's rows, which an explanation does not wait for;
-        tests/api/test_timeline_upkeep.py keeps the two (and the timeline's sentences) equal on random histories."""
-        if any(self.get(sender).kind == "human" for sender in senders):
-            return False
-        if robot is not None and robot["iri"] in senders:
-            return True
-        return not senders and INITIAL_MESSAGE not in message.types() and not listening
+        """Whether the robot said it, by the rule of reading `speaker` (the conversations report's and the
+        timeline's too), read over the explanation's resources."""
+        kinds = {sender: self.get(sender).kind for sender in senders}
+        performer = robot["iri"] if robot is not None else None
+        return speaker(kinds, performer, HEARD_MESSAGE in message.types(), listening) == "robot"
 
     def _is_self(self, step: Step, target: str) -> bool:
-        """An annotation on the robot that performed the activity is the robot's own, expressed emotion (the
-        client has no other way to log one); without a known performer, any robot target counts as itself."""
-        if step.robot is not None:
-            return target == step.robot["iri"]
-        return self.get(target).kind == "robot"
+        """Whether an emotion on `target` is the robot's own, expressed (the rule of reading `target_kind`)."""
+        performer = step.robot["iri"] if step.robot is not None else None
+        return target_kind(target, self.get(target).kind, performer) == "robot"
 
     def _event(self, event: str) -> dict[str, Any]:
         node = self.get(event)
@@ -297,6 +312,12 @@ class _Reader:
             for procedure in self.get(observation).out(SOSA + "usedProcedure"):
                 modalities.append(self.get(procedure).label)
         return {"iri": event, "label": node.label, "humans": humans, "modalities": sorted(set(modalities))}
+
+
+def _time(node: Resource) -> str | None:
+    """A node's own time, in UTC as every page writes it."""
+    time = node.body.get("time")
+    return normal_time(str(time)) if time else None
 
 
 def _quote(text: object) -> str:

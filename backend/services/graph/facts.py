@@ -18,19 +18,21 @@ from datetime import UTC, datetime, timedelta
 
 from pyoxigraph import Literal, NamedNode, Quad
 
+from segb_server.backend.reading import NAME_PREDICATES, TIME_PREDICATES, display_name, own_time
 from segb_server.backend.services.upkeep.terms import CHUNK, TermIds, iri_hash, texts_of
 from segb_server.backend.services.values import iso_time
 from segb_server.backend.vocabulary import KINDS, PREFIXES, Kind, kind_of
 
 RDF_TYPE = PREFIXES["rdf"] + "type"
-# Display name predicates, best first.
-LABELS = [PREFIXES["foaf"] + "firstName", PREFIXES["schema"] + "name", PREFIXES["rdfs"] + "label"]
+# Display name predicates, best first: the rule of reading (backend/reading.py).
+LABELS = list(NAME_PREDICATES)
 TEXT = PREFIXES["schema"] + "text"
 DESCRIPTION = PREFIXES["schema"] + "description"
 INTENSITY = PREFIXES["onyx"] + "hasEmotionIntensity"
 CATEGORY = PREFIXES["onyx"] + "hasEmotionCategory"
-# Own time of a node, best first. Messages and emotions borrow the time of the activity behind them.
-TIMES = [PREFIXES["prov"] + name for name in ("startedAtTime", "endedAtTime", "generatedAtTime")]
+# Own time of a node, best first (the rule of reading). Messages and emotions borrow the time of the activity behind
+# them.
+TIMES = list(TIME_PREDICATES)
 GENERATED_AT = PREFIXES["prov"] + "generatedAtTime"
 WAS_GENERATED_BY = PREFIXES["prov"] + "wasGeneratedBy"
 PRODUCED = PREFIXES["segb"] + "producedEntityResult"
@@ -176,7 +178,7 @@ class Facts:
                 values = literals.get(node, {})
                 types = self._types_of(connection, typesets[node]) if node in typesets else frozenset()
                 kind = kind_of(types, timestamped=GENERATED_AT in values)
-                own = next((values[p] for p in TIMES if p in values), None)
+                own = own_time(values)
                 label = display_label(iris[node], kind, values, categories.get(node))
                 derived[node] = _Derived(kind, normal_time(own), label)
             borrowing = [node for node, d in derived.items() if d.time is None and d.kind in ("message", "emotion")]
@@ -297,9 +299,8 @@ class Facts:
 
 def display_label(iri: str, kind: Kind, literals: dict[str, str], category: str | None) -> str:
     """A name for a node: its own name, an emotion's category and intensity, its text, or its IRI's end."""
-    for predicate in LABELS:
-        if predicate in literals:
-            return literals[predicate]
+    if (name := display_name(literals)) is not None:
+        return name
     if kind == "emotion" and INTENSITY in literals:
         name = local_name(category).removeprefix("big6_") if category else ""
         return f"{name} {literals[INTENSITY]}".strip()

@@ -13,12 +13,12 @@ from concurrent.futures import ThreadPoolExecutor
 
 from pyoxigraph import Literal, NamedNode, Quad
 
+from segb_server.backend.reading import own_time
 from segb_server.backend.services.errors import InvalidParameter, ViewNotReady
 from segb_server.backend.services.graph.index import (
     CATEGORY,
     GENERATED_AT,
     RDF_TYPE,
-    TIMES,
     GraphIndex,
     GraphRequest,
     display_label,
@@ -188,7 +188,7 @@ def _described(
         "kind": kind,
         "types": sorted(compact(t) for t in types),
     }
-    time = next((literals[p] for p in TIMES if p in literals), None)
+    time = own_time(literals)
     if time:
         node["time"] = time
     return {

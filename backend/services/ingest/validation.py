@@ -27,6 +27,7 @@ from decimal import Decimal, InvalidOperation
 from pyoxigraph import BlankNode, Literal, NamedNode, Quad, Triple
 
 from segb_server.backend.auth import PermissionDenied
+from segb_server.backend.reading import TIME_PREDICATES
 from segb_server.backend.services.errors import EmptyPayload, InvalidRdf, PayloadTooLarge
 from segb_server.backend.services.ingest.parsing import parse_quads
 from segb_server.backend.services.ingest.payloads import decode_ingest_body
@@ -45,7 +46,7 @@ OBJECT_PROPERTIES = frozenset(
     + [PROV + "specializationOf", SEGB + "triggeredByActivity", SEGB + "producedEntityResult"]
 )
 # ...these must be xsd:dateTime literals...
-TIME_PROPERTIES = frozenset(PROV + name for name in ("startedAtTime", "endedAtTime", "generatedAtTime"))
+TIME_PROPERTIES = frozenset(TIME_PREDICATES)
 # ...and these are an emotion's intensity (a number in [0, 1]) and category (a resource).
 INTENSITY = ONYX + "hasEmotionIntensity"
 CATEGORY = ONYX + "hasEmotionCategory"

@@ -20,7 +20,7 @@ from collections.abc import Callable, Collection, Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, BinaryIO
-from urllib.parse import quote
+from urllib.parse import quote, unquote
 
 from segb_server.backend.config import Settings
 from segb_server.backend.services.clock import utc_iso
@@ -31,7 +31,11 @@ LEVELS = ("DEBUG", "INFO", "WARNING", "ERROR", "CRITICAL")
 # Structured fields a record may carry (passed as `extra=` by the request logger and others).
 FIELDS = ("request_id", "user", "origin_ip", "method", "path", "status", "duration_ms", "triples_written", "log_id")
 REQUIRED = ("time", "level", "logger", "message")  # what every entry has; a line without them was not ours
-_IRI = re.compile(r"https?(?::|%3A)[^\s\"'<>\\]+", re.IGNORECASE)
+_IRI = re.compile(r"https?(?::|%(?:25)*3A)[^\s\"'<>\\]+", re.IGNORECASE)  # `%3A`, `%253A`: encoded once, twice
+# How the request log writes a path naming a person's IRI (api/request_context.py, `logged_path`): the IRI left
+# out, its last segment kept.
+HUMAN_PATH_PREFIX = "/humans/{iri}/"
+_HUMAN_PATH = re.compile(re.escape(HUMAN_PATH_PREFIX) + r"([^\s\"]+)")
 RING_ENTRIES = 5000
 
 Entry = dict[str, Any]
@@ -197,13 +201,17 @@ class ServerLog:
     def forget(self, iris: Collection[str], texts: Collection[str]) -> int:
         """Remove every entry naming one of `iris` or quoting one of `texts` (an erased person's), from the file
         and its rotations; returns how many went. Every entry is read, a request's too (its path may name a
-        person: `/ledger/{id}`, a mistyped route): the IRIs it names (as written, or percent-encoded in a URL)
-        looked up, the texts searched for."""
-        wanted = {form for iri in iris for form in (iri, quote(iri, safe=""))}
+        person: `/ledger/{id}`, a mistyped route): the IRIs it names looked up in every spelling (as written, or
+        percent-encoded in a URL, wholly or in part), and the path a request naming a person's IRI is logged as
+        (`/humans/{iri}/human_maria`: the IRI's last segment), the texts searched for."""
+        wanted = set(iris)
+        in_paths = {form for iri in iris for segment in [_last_segment(iri)] for form in (segment, quote(segment))}
         needles = [form for text in texts if text for form in {text, json.dumps(text)[1:-1], quote(text, safe="")}]
 
         def quotes(line: str) -> bool:
-            if any(found.rstrip(".,;)") in wanted for found in _IRI.findall(line)):
+            if any(_spelt(found) & wanted for found in _IRI.findall(line)):
+                return True
+            if any(segment in in_paths for segment in _HUMAN_PATH.findall(line)):
                 return True
             return any(needle in line for needle in needles)
 
@@ -274,6 +282,19 @@ class ServerLog:
             except FileNotFoundError:
                 continue
             yield from _parsed(reversed(lines))
+
+
+def _last_segment(iri: str) -> str:
+    return iri.rstrip("/").rsplit("/", 1)[-1]
+
+
+def _spelt(found: str) -> set[str]:
+    """An IRI found in a line, in the spellings it may stand for: as written, and percent-decoded as many times
+    as it was encoded (a few)."""
+    spellings = [found.rstrip(".,;)")]
+    while len(spellings) < 4 and (decoded := unquote(spellings[-1])) != spellings[-1]:
+        spellings.append(decoded)
+    return set(spellings)
 
 
 @contextmanager

@@ -1,10 +1,12 @@
 """Erasing one person (GDPR Art. 17), and retention's erasure of old posts, through the journal.
 
-What goes with a person is the rule `sparql/people/erase.rq` (docs/personal-data.md explains it). The resources
-it names are found in the store once it holds the whole journal; every line of every post whose subject or
-object is one of them leaves the journal's content in one transaction that also appends the erasure's record
-(writing/erasure.py); the applier then removes those triples from the store, the views' keeper builds every
-view again from the store, and the other places that hold data let the person go too (`Forgetting`).
+What goes with a person is the rule `sparql/people/erase.rq` (docs/personal-data.md explains it), of which only
+what concerns that person is kept (reach.py: never another agent, a class or a predicate), and only for an IRI the
+log types as a person. The resources it names are found in the store once it holds the whole journal; every line
+of every post whose subject or object is one of them leaves the journal's content in one transaction that also
+appends the erasure's record (writing/erasure.py), and later posts naming them are withheld; the applier then
+removes those triples from the store, the views' keeper builds every view again from the store, and the other
+places that hold data let the person go too (`Forgetting`).
 """
 
 from __future__ import annotations
@@ -17,9 +19,17 @@ from collections.abc import Callable
 from contextlib import nullcontext
 from dataclasses import dataclass, field
 
-from pyoxigraph import Literal, NamedNode, RdfFormat, parse
+from pyoxigraph import Literal, RdfFormat, parse
 
 from segb_server.backend.services.errors import Conflict, InvalidParameter, NotFound
+from segb_server.backend.services.people.reach import (
+    check_erasable,
+    check_person_types,
+    kinds,
+    reach,
+    standing,
+    triples_about,
+)
 from segb_server.backend.services.sparql.catalog import CatalogQuery
 from segb_server.backend.services.writing.erasure import (
     Erasure,
@@ -31,7 +41,6 @@ from segb_server.backend.services.writing.erasure import (
 from segb_server.backend.services.writing.receipts import Receipt
 from segb_server.backend.services.writing.write_path import WritePath
 from segb_server.backend.store.base import Store, StoreUnavailable, select
-from segb_server.backend.vocabulary import PERSON_CLASSES
 
 logger = logging.getLogger("segb.people")
 
@@ -47,7 +56,6 @@ FIND_ATTEMPTS = 5
 HELD_APPLY_TIMEOUT_SECONDS = 30.0
 MAX_REASON = 500
 SHORTEST_TERM = 3  # words shorter than this are too common to look for in the server log
-_TYPES = "SELECT ?type WHERE { ?resource a ?type }"
 
 
 @dataclass(frozen=True)
@@ -81,6 +89,19 @@ class ErasureResult:
     seconds: dict[str, float] = field(default_factory=dict)  # how long each step took (found, journaled, …)
 
 
+@dataclass(frozen=True)
+class ErasurePreview:
+    """What erasing a person would take, found in the store and written nowhere: the resources by kind, the
+    triples of the store that name one of them, and how many resources the rule reached but would leave alone (an
+    agent, a class or a predicate a robot linked to the person's resources, or reached only through one)."""
+
+    human: str
+    resources: int
+    kinds: dict[str, int]
+    triples: int
+    left_out: int
+
+
 class ErasureService:
     """One erasure at a time (they are rare, and each rewrites the store's files on the embedded store)."""
 
@@ -102,24 +123,26 @@ class ErasureService:
 
     def resources(self, human: str) -> list[str]:
         """The IRIs the rule erases with `human`, found in the store (blocking)."""
-        bound = self.rule.bindings({"human": human})
-        rows = select(self.store, self.rule.text, bound).rows
-        return sorted({row["resource"].value for row in rows if isinstance(row.get("resource"), NamedNode)})
+        return reach(self.store, self.rule, human).resources
 
     def check_person(self, human: str) -> None:
         """422 when the log types `human` and as something else than a person (a robot, a model, a message): an
-        erasure cannot be undone, and an export would tell a robot's log as someone's life. An IRI the log does not
-        type passes: a robot may name someone (a message's sender) without typing them."""
-        rows = select(self.store, _TYPES, {"resource": NamedNode(human)}).rows
-        types = {row["type"].value for row in rows if isinstance(row.get("type"), NamedNode)}
-        if types and types.isdisjoint(PERSON_CLASSES):
-            named = ", ".join(f"<{iri}>" for iri in sorted(types)[:3])
-            raise InvalidParameter("iri", f"is not a person: the log types <{human}> as {named}")
+        export would tell a robot's log as someone's life. An IRI the log does not type passes here (a robot may
+        name someone without typing them): only an erasure, which cannot be undone, asks for a person's type."""
+        check_person_types(human, standing(self.store, [human])[human].types)
+
+    def preview(self, human: str) -> ErasurePreview:
+        """What erasing `human` would take, as the store holds it now; nothing is written (blocking). 404 and 422
+        as for the erasure itself."""
+        check_erasable(self.store, human)
+        found = reach(self.store, self.rule, human)
+        triples = len(set(triples_about(self.store, found.resources)))
+        return ErasurePreview(human, len(found.resources), kinds(self.store, found.resources), triples, found.left_out)
 
     def erase_human(self, human: str, reason: str, actor: str) -> ErasureResult:
-        """Erase `human` everywhere; 404 when neither the store nor the journal holds anything about them."""
+        """Erase `human` everywhere; 404 when neither the store nor the journal holds anything about them, 422
+        when the log does not type them as a person."""
         reason = _checked_reason(reason)
-        self.check_person(human)
         with self._one_at_a_time:
             clock = _Clock()
             found, done = self._found_and_journaled(human, reason, actor, clock)
@@ -161,13 +184,15 @@ class ErasureService:
             held = attempt > 1
             with self.writes.journal.posts_held() if held else nullcontext():
                 as_of = self._caught_up(HELD_APPLY_TIMEOUT_SECONDS if held else APPLY_TIMEOUT_SECONDS)
+                check_erasable(self.store, human)
                 found = self.resources(human)
                 clock.lap("found")
                 if human not in found:
                     found.append(human)  # the journal may still hold them (a post not applied, an older history)
                 erasure = Erasure(
-                    str(uuid.uuid4()), actor, "human", reason, touching(found), withhold=True, found_as_of=as_of
-                )
+                    str(uuid.uuid4()), actor, "human", reason, touching(found), withhold=True, found_as_of=as_of,
+                    resources=frozenset(found),
+                )  # fmt: skip
                 try:
                     done = self._journal(erasure, f"Nothing about <{human}> is held: nothing was erased.")
                 except SelectionOutdated as outdated:

@@ -4,23 +4,18 @@ were read on them with which model, when they were seen)."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from dataclasses import dataclass
 
-from pyoxigraph import Literal, NamedNode, Triple
+from pyoxigraph import Literal, Triple
 
 from segb_server.backend.services.errors import NotFound
 from segb_server.backend.services.people.erasure import FIRST_NAME, ErasureService
+from segb_server.backend.services.people.reach import triples_about
 from segb_server.backend.services.sparql.catalog import CatalogQuery
 from segb_server.backend.services.values import JsonValue, json_value
 from segb_server.backend.store.base import Store, select
-from segb_server.backend.store.terms import bind_rows
 
 STORY = "people/story"
-RESOURCES_PER_QUERY = 200
-_ABOUT = """SELECT ?s ?p ?o WHERE {
-  { ?r ?p ?o . BIND (?r AS ?s) } UNION { ?s ?p ?r . BIND (?r AS ?o) }
-}"""
 
 
 @dataclass(frozen=True)
@@ -41,7 +36,7 @@ class PersonExport:
         """Everything held about `human` (blocking); 404 when the store holds nothing about them, 422 when the log
         says it is not a person."""
         self.erasure.check_person(human)
-        triples = sorted(set(self._triples(self.erasure.resources(human))), key=str)
+        triples = sorted(set(triples_about(self.store, self.erasure.resources(human))), key=str)
         if not triples:
             raise NotFound(f"The store holds nothing about <{human}>.")
         rows = select(self.store, self.story_query.text, self.story_query.bindings({"human": human})).rows
@@ -52,10 +47,3 @@ class PersonExport:
             if isinstance(t.object, Literal) and str(t.subject) == f"<{human}>" and t.predicate.value == FIRST_NAME
         ]
         return PersonData(human, names[0] if names else None, triples, story)
-
-    def _triples(self, resources: list[str]) -> Iterator[Triple]:
-        for start in range(0, len(resources), RESOURCES_PER_QUERY):
-            chunk = [[NamedNode(iri)] for iri in resources[start : start + RESOURCES_PER_QUERY]]
-            bound = bind_rows(_ABOUT, ["r"], chunk, wrap=self.store.wraps_values)  # type: ignore[arg-type]
-            for row in select(self.store, bound).rows:
-                yield Triple(row["s"], row["p"], row["o"])  # type: ignore[arg-type]

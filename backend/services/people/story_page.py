@@ -1,13 +1,12 @@
 """A person's data as one page they can read and keep: self-contained HTML (no script, no outside resource),
-every value from the log escaped."""
+every value from the log escaped, its direction controls shown as marks."""
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 
-from jinja2 import Environment
-
 from segb_server.backend.services.clock import utc_iso
+from segb_server.backend.services.direction_controls import page_environment
 from segb_server.backend.services.people.export import PersonData
 from segb_server.backend.vocabulary import compact
 
@@ -15,7 +14,9 @@ from segb_server.backend.vocabulary import compact
 # style is what serves it.
 PAGE_POLICY = "default-src 'none'; style-src 'unsafe-inline'; img-src data:; base-uri 'none'; form-action 'none'"
 
-_PAGE = Environment(autoescape=True).from_string(
+# A robot's direction controls are shown as marks (direction_controls.py): a name with an override would turn the
+# page's own sentences around.
+_PAGE = page_environment().from_string(
     """<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>What the robots' log holds about {{ name }}</title>
 <meta name="viewport" content="width=device-width, initial-scale=1"><link rel="icon" href="data:,">

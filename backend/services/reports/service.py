@@ -138,6 +138,10 @@ class ReportService:
         """Each kept query's name → the reports its rows serve (its own, and the presets sharing them)."""
         return self._kept.served() if self._kept is not None else {}
 
+    def kept_queries(self) -> KeptQueries | None:
+        """The reports' rows (None where no report is kept as rows)."""
+        return self._kept
+
     def close(self) -> None:
         if self._kept is not None:
             self._kept.rows.close()

@@ -26,8 +26,9 @@ from typing import Literal as TypingLiteral
 
 from pyoxigraph import RdfFormat, parse
 
+from segb_server.backend.reading import ReadingError
 from segb_server.backend.services.errors import NotFound, ServiceError
-from segb_server.backend.services.sparql.catalog import CatalogQuery, Parameter, read_header
+from segb_server.backend.services.sparql.catalog import CatalogQuery, Parameter, read_header, read_header_only
 from segb_server.backend.services.sparql.parser import translate_query
 
 Severity = TypingLiteral["violation", "warning", "info"]
@@ -123,7 +124,10 @@ def _load(path: Path) -> Rule:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as error:
         raise RuleError(f"{path}: cannot be read ({error})") from None
-    header = read_header(text)
+    try:
+        header = read_header(text) if path.suffix == ".rq" else read_header_only(text)
+    except ReadingError as error:
+        raise RuleError(f"{path}: {error}") from None
     meta = header.meta
     rule_id = meta.get("id", path.stem)
     if rule_id != path.stem or not _ID.fullmatch(rule_id):
@@ -133,7 +137,7 @@ def _load(path: Path) -> Rule:
         raise RuleError(f"{path}: `# severity:` must be one of {', '.join(SEVERITIES)}, not '{severity}'")
     title, description = meta.get("title") or rule_id, meta.get("description", "")
     if path.suffix == ".rq":
-        query = CatalogQuery(f"{FOLDER}/{rule_id}", title, description, text, header.parameters)
+        query = CatalogQuery(f"{FOLDER}/{rule_id}", title, description, header.text, header.parameters)
         _check_query(path, query)
         return Rule(rule_id, title, severity, description, path, query=query)
     if header.parameters:

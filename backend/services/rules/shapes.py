@@ -23,6 +23,7 @@ from rdflib import RDF, SH, BNode, Graph, URIRef
 from rdflib.term import Literal as RdfLiteral
 from rdflib.term import Node
 
+from segb_server.backend.reading import TIME_PREDICATES
 from segb_server.backend.services.rules.catalog import Rule
 from segb_server.backend.services.rules.shape_check import PropertyCheck, as_rdflib, check_node, compile_shape
 from segb_server.backend.services.sparql.parser import exclusive
@@ -36,7 +37,7 @@ NODES_PER_QUERY = 300
 FOCUS_PER_RUN = 200
 PROV = PREFIXES["prov"]
 # What a finding lists besides the shape's message, read from the focus node's own statements.
-TIMES = tuple(PROV + name for name in ("startedAtTime", "endedAtTime", "generatedAtTime"))
+TIMES = TIME_PREDICATES
 # Its robot: the one that performed it; or the agent it is attributed to, unless it is something said (the PyPI
 # client attributes a message to its sender, a person as often as not); or, for what an activity generated (a
 # message, an observation), the robot that performed that activity (`robots_of_generating`).

@@ -32,6 +32,7 @@ from typing import cast
 
 from pyoxigraph import Literal, NamedNode
 
+from segb_server.backend.reading import ReadingError, expand
 from segb_server.backend.services.errors import InvalidParameter, NotFound, ServiceError
 from segb_server.backend.store.base import Bindings, Term
 
@@ -154,6 +155,13 @@ class Header:
 
 
 def read_header(text: str) -> Header:
+    """A query file's header and its text, each `%rule(…)` of reading expanded (backend/reading.py)."""
+    header = read_header_only(text)
+    return Header(header.meta, header.parameters, expand(text))
+
+
+def read_header_only(text: str) -> Header:
+    """A file's header, its text as it is (a shapes graph's, which has no rules of reading)."""
     meta: dict[str, str] = {}
     parameters: dict[str, Parameter] = {}
     for line in text.splitlines():
@@ -186,6 +194,13 @@ class CatalogError(ServiceError):
     code = "catalog_error"
 
 
+def _read(path: Path) -> Header:
+    try:
+        return read_header(path.read_text(encoding="utf-8"))
+    except ReadingError as error:
+        raise CatalogError(f"{path}: {error}") from None
+
+
 class Catalog:
     """All queries of a `sparql/` directory, loaded once at start-up.
 
@@ -195,7 +210,7 @@ class Catalog:
     def __init__(self, directory: Path, required: tuple[str, ...] = ()) -> None:
         self.directory = directory
         headers = {
-            path.relative_to(directory).with_suffix("").as_posix(): read_header(path.read_text(encoding="utf-8"))
+            path.relative_to(directory).with_suffix("").as_posix(): _read(path)
             for path in sorted(directory.rglob("*.rq"))
         }
         if not headers:

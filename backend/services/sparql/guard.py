@@ -28,10 +28,14 @@ from segb_server.backend.store.query_form import QueryForm, query_form
 from segb_server.backend.store.sparql_text import code_only as _code_only
 
 MAX_QUERY_BYTES = 100_000
+# rdflib spends one to two milliseconds on each operator, comma, function call and group of a query (a tenth of
+# that on triples and VALUES rows): more than this many would keep it parsing for seconds.
+MAX_QUERY_TERMS = 2_000
 
 # Reasons, in the order they are reported when a query has several problems (the most serious first).
 REASONS = (
     "too_long",
+    "too_complex",
     "empty",
     "multiple_queries",
     "virtuoso_pragma",
@@ -71,6 +75,10 @@ _DEFINE = re.compile(_WORD_START + r"define\s+[A-Za-z_][\w.\-]*:", re.IGNORECASE
 _PROLOGUE = re.compile(r"(?:\s+|BASE\s*<[^>]*>|PREFIX\s+[^\s:]*:\s*<[^>]*>)*", re.IGNORECASE)
 _FIRST_WORD = re.compile(r"[A-Za-z]+")
 _FROM = re.compile(_WORD_START + r"FROM\s+(?:NAMED\s+)?(?:<[^>]*>|[^\s<{]*:[^\s{]*)", re.IGNORECASE)
+# What costs rdflib's parser time: operators, commas, opening brackets (calls, FILTERs, groups). Counted in the
+# code only, after the IRIs (`<` and `>` around blanks there) are dropped.
+_EMPTIED_IRI = re.compile(r"<\s*>")
+_COSTLY_TERM = re.compile(r"\|\||&&|[-({=<>!+*/,]")
 
 
 @dataclass(frozen=True)
@@ -85,10 +93,22 @@ class QueryTooLong(PayloadTooLarge):
     """The query text is over MAX_QUERY_BYTES (answered with 413)."""
 
 
+class QueryTooComplex(PayloadTooLarge):
+    """The query has more than MAX_QUERY_TERMS operators, commas and brackets (answered with 413)."""
+
+
 def guard_query(query: str, events_graph: str | None = None) -> CheckedQuery:
     """The query's form ("select", "ask", "construct" or "describe") and the text to run (FROM <events graph>
-    dropped) when it may run; else raise InvalidQuery (or QueryTooLong) with `reason`, `line` and `column` in
-    its details. With `events_graph` None, any FROM clause is rejected."""
+    dropped) when it may run; else raise InvalidQuery (or QueryTooLong, QueryTooComplex) with `reason`, `line`
+    and `column` in its details. With `events_graph` None, any FROM clause is rejected."""
+    refuse_unparsable(query)
+    # Parsing a long query takes rdflib tens of milliseconds; clients repeat the same queries (report pages).
+    return _guard_parsed(query, events_graph)
+
+
+def refuse_unparsable(query: str) -> None:
+    """The checks made before parsing, cheap whatever the text: raise QueryTooLong, QueryTooComplex or
+    InvalidQuery ("empty") for a query too long or too complex to parse, or with nothing to parse."""
     size = len(query.encode("utf-8"))
     if size > MAX_QUERY_BYTES:
         raise QueryTooLong(
@@ -100,8 +120,16 @@ def guard_query(query: str, events_graph: str | None = None) -> CheckedQuery:
         )
     if not query.strip():
         raise query_rejected("empty", "The query is empty.")
-    # Parsing a long query takes rdflib tens of milliseconds; clients repeat the same queries (report pages).
-    return _guard_parsed(query, events_graph)
+    terms = len(_COSTLY_TERM.findall(_EMPTIED_IRI.sub(" ", _code_only(query))))
+    if terms > MAX_QUERY_TERMS:
+        raise QueryTooComplex(
+            f"The query has {terms} operators, commas and brackets; the limit is {MAX_QUERY_TERMS}. Split it, or "
+            "give long lists of values in a VALUES block.",
+            reason="too_complex",
+            line=None,
+            column=None,
+            query_kind=query_form(query) or "unknown",
+        )
 
 
 @lru_cache(maxsize=128)

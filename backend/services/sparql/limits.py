@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Iterable, Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from itertools import islice
 from typing import Any, TypeVar
 
@@ -18,8 +18,23 @@ Item = TypeVar("Item")
 
 @dataclass(frozen=True)
 class QueryLimits:
+    """How long a user's query may take, checking included, and how many rows its answer may hold. The time
+    counts from when the limits are made (`started`, time.monotonic())."""
+
     timeout_seconds: float
     max_rows: int
+    started: float = field(default_factory=time.monotonic)
+
+    @property
+    def deadline(self) -> float:
+        return self.started + self.timeout_seconds
+
+    def seconds_left(self) -> float:
+        """What is left of the time; raise QueryTimeout when nothing is."""
+        left = self.deadline - time.monotonic()
+        if left <= 0:
+            raise QueryTimeout(self.timeout_seconds)
+        return left
 
 
 @dataclass(frozen=True)
@@ -32,18 +47,20 @@ class LimitedResult:
 
 
 def run_limited(store: Store, sparql: str, limits: QueryLimits) -> LimitedResult:
-    """Run `sparql` and read at most `limits.max_rows` rows of it before `limits.timeout_seconds` have
-    passed; raise QueryTimeout otherwise.
+    """Run `sparql` and read at most `limits.max_rows` rows of it before `limits.deadline`; raise QueryTimeout
+    otherwise.
 
     The deadline is checked between rows: the embedded store cannot be interrupted, but it yields solutions
     lazily, so a query producing many rows stops at the first row past the deadline (one that computes long
     before its first row, like an ORDER BY over a huge join, is caught only when that row comes)."""
-    deadline = time.monotonic() + limits.timeout_seconds
-    result = store.query(sparql, timeout=limits.timeout_seconds)
     try:
-        return _read(result, deadline, limits)
+        result = store.query(sparql, timeout=limits.seconds_left())
+    except QueryTimeout:
+        raise QueryTimeout(limits.timeout_seconds) from None  # the store knew only the time left
+    try:
+        return _read(result, limits.deadline, limits)
     except StoreError as error:
-        failure = error
+        failure = QueryTimeout(limits.timeout_seconds) if isinstance(error, QueryTimeout) else error
     # pyoxigraph results must be dropped on the thread that made them, and the error's traceback holds
     # frames that hold them: let both go here, and raise the error with a fresh traceback.
     del result

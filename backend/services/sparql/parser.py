@@ -4,6 +4,9 @@ rdflib parses SPARQL with pyparsing, whose grammar objects are shared, mutable m
 parsing at once corrupt it (a parse action is called with the wrong arguments) and every later parse in the
 process fails too. Every use of the parser goes through this module, under one lock; the first parse runs at
 import, while only one thread exists, so pyparsing settles its internal state before any concurrent use.
+
+The lock is for the server's own queries (the catalog's, read at start and planned once): users' queries are
+checked in a process of their own (checkers.py), since one slow parse would hold every other parse behind it.
 """
 
 from __future__ import annotations

@@ -50,7 +50,7 @@ class QueryTooBig(StoreError):
 
 class QueryRunner(Protocol):
     def run(self, text: str, limits: QueryLimits) -> LimitedResult:
-        """The query's answer, at most `limits.max_rows` rows, or QueryTimeout past `limits.timeout_seconds`."""
+        """The query's answer, at most `limits.max_rows` rows, or QueryTimeout past `limits.deadline`."""
 
     def close(self) -> None:
         """Stop what the runner started."""
@@ -114,7 +114,7 @@ class IsolatedRunner:
             snapshots.mkdir(parents=True)
 
     def run(self, text: str, limits: QueryLimits) -> LimitedResult:
-        if not self._slots.acquire(timeout=limits.timeout_seconds):
+        if not self._slots.acquire(timeout=limits.seconds_left()):
             raise QueryTimeout(limits.timeout_seconds)
         try:
             with self._snapshot() as snapshot:
@@ -147,7 +147,7 @@ class IsolatedRunner:
     def _ask(self, worker: _Worker, snapshot: _Snapshot, text: str, limits: QueryLimits) -> Answer:
         first_time = worker.snapshot != snapshot.key
         ask = Ask(snapshot.key, _path(snapshot), snapshot.nquads if first_time else None, text, limits.max_rows)
-        deadline = time.monotonic() + limits.timeout_seconds
+        deadline = limits.deadline
         try:
             worker.connection.send(ask)
             # Watch the worker while it runs: ending the process is the only way to stop the query, and its CPU

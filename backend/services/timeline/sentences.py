@@ -14,8 +14,8 @@ import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
+from segb_server.backend.reading import ACTIVITY_KINDS
 from segb_server.backend.services import direction_controls
-from segb_server.backend.services.explain.service import ACTIVITY_KINDS
 from segb_server.backend.services.graph.service import local_name
 from segb_server.backend.services.values import JsonValue
 

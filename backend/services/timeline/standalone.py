@@ -15,9 +15,10 @@ from collections.abc import Mapping, Sequence
 from functools import cache
 from importlib.resources import files
 
-from jinja2 import Environment, Template
+from jinja2 import Template
 from markupsafe import Markup
 
+from segb_server.backend.services.direction_controls import page_environment
 from segb_server.backend.services.timeline.kinds import KINDS
 
 # The page's own look: the web UI's colours and type, as far as a page with one section needs them.
@@ -42,7 +43,7 @@ def viewer_file(name: str) -> str:
 
 @cache
 def _template() -> Template:
-    environment = Environment(autoescape=True, keep_trailing_newline=True)
+    environment = page_environment(keep_trailing_newline=True)  # a robot's direction controls shown as marks
     return environment.from_string(viewer_file("standalone.html"))
 
 

@@ -69,6 +69,8 @@ class Erasure:
     selection: LineSelection
     withhold: bool
     found_as_of: int | None = None
+    # The IRIs erased (a person's resources): withheld too, a triple naming one is recorded by no later post.
+    resources: frozenset[str] = frozenset()
 
 
 class SelectionOutdated(Exception):
@@ -168,6 +170,31 @@ def forget_digests(connection: Database, digests: list[bytes], withhold: bool) -
                 "ON CONFLICT (digest) DO NOTHING",
                 chunk,
             )
+
+
+def resource_digest(iri: str) -> bytes:
+    """An erased IRI as `erased_triples` keeps it, beside the triples' digests (no triple's text starts the
+    same): a digest, so the journal's files do not name the person."""
+    return hashlib.blake2b(f"erased resource <{iri}>".encode(), digest_size=16).digest()
+
+
+def naming_erased(connection: Database, lines: dict[bytes, str]) -> set[bytes]:
+    """Of `lines` (digest → `<s> <p> o` text), those whose subject or object is an IRI an erasure withheld: a
+    robot re-attaching new data to what was erased (a new emotion in an erased annotation) records none of it."""
+    named: dict[bytes, set[bytes]] = {}
+    for digest, line in lines.items():
+        subject, _predicate, obj = line.split(" ", 2)
+        for term in (subject, obj):
+            if term.startswith("<") and not term.startswith("<<"):
+                named.setdefault(resource_digest(term[1:-1]), set()).add(digest)
+    ordered = list(named)
+    found: set[bytes] = set()
+    for start in range(0, len(ordered), _ROWS_PER_STATEMENT):
+        chunk = ordered[start : start + _ROWS_PER_STATEMENT]
+        marks = ", ".join(["?"] * len(chunk))
+        for (erased,) in connection.execute(f"SELECT digest FROM erased_triples WHERE digest IN ({marks})", chunk):
+            found |= named[bytes(erased)]
+    return found
 
 
 def erasure_receipt(erasure: Erasure, record: RedactionRecord, sequence: int, previous: str) -> Receipt:

@@ -33,7 +33,9 @@ from segb_server.backend.services.writing.erasure import (
     candidates,
     erasure_receipt,
     forget_digests,
+    naming_erased,
     redact,
+    resource_digest,
 )
 from segb_server.backend.services.writing.journal_reads import COLUMNS, JournalReads
 from segb_server.backend.services.writing.journal_reads import JournalEntry as JournalEntry  # re-exported
@@ -216,6 +218,8 @@ class Journal(JournalReads):
                 if not redaction.items:
                     return None
                 digests = [triple_digest(line[:-2].decode()) for line in redaction.removed]
+                if erasure.withhold:
+                    digests += [resource_digest(iri) for iri in sorted(erasure.resources)]
                 forget_digests(connection, digests, erasure.withhold)
                 self._next_epoch(connection)  # every process's cache of held triples starts again
                 record = RedactionRecord(erasure.kind, erasure.reason, redaction.items)
@@ -258,6 +262,13 @@ class Journal(JournalReads):
         unknown = [index for index, digest in enumerate(post.digests) if digest not in self._known]
         new_digests = _insert_new_digests(connection, [post.digests[index] for index in unknown])
         withheld = erased_among(connection, new_digests) if new_digests and self._erasures(connection) else set()
+        if new_digests and self._any_erased:
+            fresh = {post.digests[i]: post.lines[i] for i in unknown if post.digests[i] in new_digests}
+            naming = naming_erased(
+                connection, {digest: line for digest, line in fresh.items() if digest not in withheld}
+            )
+            _forget_new(connection, naming)  # not the journal's: sent again, they are withheld again
+            withheld |= naming
         new_lines = [
             post.lines[i] for i in unknown if post.digests[i] in new_digests and post.digests[i] not in withheld
         ]
@@ -372,6 +383,13 @@ def erased_among(connection: Database, digests: set[bytes]) -> set[bytes]:
         chunk = withheld[start : start + _ROWS_PER_INSERT]
         connection.execute(f"DELETE FROM journal_triples WHERE digest IN ({', '.join(['?'] * len(chunk))})", chunk)
     return found
+
+
+def _forget_new(connection: Database, digests: set[bytes]) -> None:
+    ordered = list(digests)
+    for start in range(0, len(ordered), _ROWS_PER_INSERT):
+        chunk = ordered[start : start + _ROWS_PER_INSERT]
+        connection.execute(f"DELETE FROM journal_triples WHERE digest IN ({', '.join(['?'] * len(chunk))})", chunk)
 
 
 def _insert_new_digests(connection: Database, digests: list[bytes]) -> set[bytes]:

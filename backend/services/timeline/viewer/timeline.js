@@ -10,6 +10,10 @@
   var ROW_HEIGHT = 34; // px; .tl-row's height in timeline.css
   var OVERSCAN = 6; // rows drawn beyond each edge of the visible ones
   var FRESH_MS = 4000; // how long a row that just arrived stays marked
+  var BREAK_PX = 76; // a stretch without events cut out of the ruler: room for its length ("36 days")
+  var PART_MIN_PX = 12; // a part of the ruler that is one instant still shows its events
+  var BREAK_SHARE = 0.5; // a stretch is cut out when it would take at least this share of the ruler
+  var MOST_BREAKS = 3;
   var NUMBER = typeof Intl !== "undefined" ? new Intl.NumberFormat("en") : null;
 
   function count(n) { return NUMBER ? NUMBER.format(n) : String(n); }
@@ -119,7 +123,9 @@
     this.playhead = element("div", "tl-playhead");
     this.playhead.hidden = true;
     this.ticks = element("div", "tl-ticks");
+    this.breaks = element("div", "tl-breaks");
     this.ruler.appendChild(this.density);
+    this.ruler.appendChild(this.breaks);
     this.ruler.appendChild(this.brush);
     this.ruler.appendChild(this.playhead);
     this.ruler.appendChild(this.ticks);
@@ -252,6 +258,7 @@
   };
 
   Timeline.prototype.refilter = function () {
+    this.scaled = null; // the rows may have changed: the ruler's breaks with them
     var view = [];
     for (var i = 0; i < this.rows.length; i++) if (this.shows(this.rows[i])) view.push(this.rows[i]);
     this.view = view;
@@ -485,17 +492,100 @@
     return this.firstTime();
   };
 
-  Timeline.prototype.x = function (t) {
-    var from = this.firstTime(), to = this.lastTime();
+  // The ruler's scale: the window's time laid across its width, except that a long stretch without events (a
+  // training run weeks before a conversation) is cut out and drawn as a narrow break labelled with its length, so
+  // the events spread over the ruler instead of sitting in a sliver of it. Each part between breaks is linear.
+  // Worked out again when the rows or the ruler's width change (refilter forgets it).
+  Timeline.prototype.scale = function () {
     var width = this.ruler.clientWidth;
-    if (to <= from) return width / 2;
-    return Math.max(0, Math.min(width, (t - from) / (to - from) * width));
+    if (this.scaled && this.scaled.width === width) return this.scaled;
+    var first = this.firstTime(), last = this.lastTime();
+    var cuts = this.quietStretches(first, last);
+    var parts = [];
+    var from = first;
+    cuts.forEach(function (cut) { parts.push({ from: from, to: cut.from }); from = cut.to; });
+    parts.push({ from: from, to: Math.max(from, last) });
+    var spread = Math.max(0, width - cuts.length * BREAK_PX - parts.length * PART_MIN_PX);
+    var drawn = parts.reduce(function (sum, part) { return sum + (part.to - part.from); }, 0);
+    var left = 0;
+    parts.forEach(function (part) {
+      part.left = left;
+      part.right = left + PART_MIN_PX + spread * (drawn > 0 ? (part.to - part.from) / drawn : 1 / parts.length);
+      left = part.right + BREAK_PX;
+    });
+    if (!cuts.length) parts = [{ from: first, to: last, left: 0, right: width }];
+    this.scaled = { width: width, parts: parts };
+    return this.scaled;
+  };
+
+  // The stretches without events to cut out of the ruler, in time order: the longest first, each while it would
+  // take at least half of what is left of the ruler and leaves events that last some time to spread over it (two
+  // events an hour apart keep their hour: it is the whole story).
+  Timeline.prototype.quietStretches = function (first, last) {
+    var longest = []; // the MOST_BREAKS longest gaps between events (and the window's edges), longest first
+    var previous = first;
+    function gap(to) {
+      var kept = longest[MOST_BREAKS - 1];
+      if (to - previous > (kept ? kept.to - kept.from : 0)) { // rare: most gaps between events are short
+        longest.push({ from: previous, to: to });
+        longest.sort(function (a, b) { return (b.to - b.from) - (a.to - a.from); });
+        if (longest.length > MOST_BREAKS) longest.pop();
+      }
+      previous = Math.max(previous, to);
+    }
+    for (var i = 0; i < this.rows.length; i++) if (this.rows[i]._t !== Infinity) gap(this.rows[i]._t);
+    gap(last);
+    var left = last - first;
+    var cuts = [];
+    for (var g = 0; g < longest.length; g++) {
+      var length = longest[g].to - longest[g].from;
+      if (length < BREAK_SHARE * left || left - length <= 0) break;
+      cuts.push(longest[g]);
+      left -= length;
+    }
+    return cuts.sort(function (a, b) { return a.from - b.from; });
+  };
+
+  Timeline.prototype.x = function (t) {
+    var scale = this.scale(), parts = scale.parts;
+    for (var i = 0; i < parts.length; i++) {
+      var part = parts[i];
+      if (t < part.from) {
+        if (i === 0) return 0;
+        var before = parts[i - 1]; // within a break: where in the quiet stretch
+        return before.right + (part.left - before.right) * (t - before.to) / (part.from - before.to);
+      }
+      if (t <= part.to) {
+        if (part.to === part.from) return (part.left + part.right) / 2;
+        return part.left + (part.right - part.left) * (t - part.from) / (part.to - part.from);
+      }
+    }
+    return scale.width;
   };
 
   Timeline.prototype.timeAt = function (x) {
-    var from = this.firstTime(), to = this.lastTime();
-    return from + (to - from) * Math.max(0, Math.min(1, x / Math.max(1, this.ruler.clientWidth)));
+    var parts = this.scale().parts;
+    for (var i = 0; i < parts.length; i++) {
+      var part = parts[i];
+      if (x < part.left && i > 0) {
+        var before = parts[i - 1];
+        return before.to + (part.from - before.to) * (x - before.right) / (part.left - before.right);
+      }
+      if (x <= part.right) {
+        return part.from + (part.to - part.from) * Math.max(0, x - part.left) / Math.max(1, part.right - part.left);
+      }
+    }
+    return parts[parts.length - 1].to;
   };
+
+  // A quiet stretch's length, as the break in the ruler names it.
+  function lasting(ms) {
+    var units = [[86400000, "days"], [3600000, "h"], [60000, "min"], [1000, "s"]];
+    for (var i = 0; i < units.length; i++) {
+      if (ms >= 2 * units[i][0]) return Math.round(ms / units[i][0]) + " " + units[i][1];
+    }
+    return ms + " ms";
+  }
 
   Timeline.prototype.redrawRuler = function () {
     var self = this;
@@ -512,14 +602,13 @@
     if (!context) return;
     var columns = this.density.width;
     var counts = new Uint32Array(columns);
-    var from = this.firstTime(), to = this.lastTime(), span = Math.max(1, to - from);
     var most = 0;
     // The events of the kinds ticked and the words found, whatever the zoom: the ruler is the whole window.
     for (var i = 0; i < this.rows.length; i++) {
       var row = this.rows[i];
       if (row._t === Infinity || this.hidden[row.kind]) continue;
       if (this.terms.length && !this.matches(row)) continue;
-      var column = Math.min(columns - 1, Math.max(0, Math.floor((row._t - from) / span * columns)));
+      var column = Math.min(columns - 1, Math.max(0, Math.floor(this.x(row._t) * ratio)));
       counts[column] += 1;
       if (counts[column] > most) most = counts[column];
     }
@@ -531,7 +620,8 @@
       var bar = Math.max(ratio, Math.log(counts[c] + 1) / scale * this.density.height);
       context.fillRect(c, this.density.height - bar, 1, bar);
     }
-    this.drawTicks(from, to, width);
+    this.drawTicks(width);
+    this.drawBreaks();
     this.drawBrush();
     if (this.current) this.playhead.style.left = this.x(this.current._t) + "px";
   };
@@ -541,18 +631,47 @@
     return true;
   };
 
-  Timeline.prototype.drawTicks = function (from, to, width) {
+  // Ticks in each part of the ruler; a label that would meet the one before it is left out (a part that is one
+  // instant has room for none of its own beside the next part's).
+  Timeline.prototype.drawTicks = function (width) {
     this.ticks.textContent = "";
     if (!this.rows.length && isNaN(this.start)) return;
+    var from = this.firstTime(), to = this.lastTime();
     var withDate = to - from > 86400000 || new Date(from).getUTCDate() !== new Date(to).getUTCDate();
-    // Far enough apart that two labels never meet; the last one ends at the ruler's right edge.
-    var marks = Math.max(1, Math.floor(width / (withDate ? 300 : 180)));
-    for (var i = 0; i <= marks; i++) {
-      var t = from + (to - from) * i / marks;
-      var tick = this.ticks.appendChild(element("span", "tl-tick", clock(t, withDate).replace(/\.\d+$/, "")));
-      tick.style.left = (width * i / marks) + "px";
-      if (i === marks) tick.classList.add("tl-tick-last");
+    var parts = this.scale().parts;
+    var marks = [];
+    parts.forEach(function (part, n) {
+      var count = part.to > part.from ? Math.max(1, Math.floor((part.right - part.left) / (withDate ? 300 : 180))) : 0;
+      if (!count) marks.push({ t: part.from, x: (part.left + part.right) / 2 });
+      for (var i = 0; i < count; i++) {
+        var share = i / count;
+        marks.push({ t: part.from + (part.to - part.from) * share, x: part.left + (part.right - part.left) * share });
+      }
+      if (n === parts.length - 1 && count) marks.push({ t: part.to, x: width, last: true });
+    });
+    var reached = -Infinity;
+    for (var m = 0; m < marks.length; m++) {
+      var tick = this.ticks.appendChild(element("span", "tl-tick", clock(marks[m].t, withDate).replace(/\.\d+$/, "")));
+      tick.style.left = marks[m].x + "px";
+      if (marks[m].last) tick.classList.add("tl-tick-last");
+      var start = marks[m].last ? marks[m].x - tick.offsetWidth : marks[m].x;
+      if (start < reached + 8) { this.ticks.removeChild(tick); continue; }
+      reached = start + tick.offsetWidth;
     }
+  };
+
+  // Where the ruler leaves out a stretch without events: a hatched gap that says how long the stretch is.
+  Timeline.prototype.drawBreaks = function () {
+    this.breaks.textContent = "";
+    var parts = this.scale().parts;
+    for (var i = 1; i < parts.length; i++) {
+      var gap = this.breaks.appendChild(element("div", "tl-break"));
+      gap.style.left = parts[i - 1].right + "px";
+      gap.style.width = parts[i].left - parts[i - 1].right + "px";
+      gap.title = lasting(parts[i].from - parts[i - 1].to) + " without events, left out of the ruler";
+      gap.appendChild(element("span", "tl-break-label", lasting(parts[i].from - parts[i - 1].to)));
+    }
+    this.root.setAttribute("data-ruler-breaks", String(parts.length - 1));
   };
 
   Timeline.prototype.drawBrush = function () {

@@ -1,4 +1,4 @@
-"""How one query is kept current, told in words (`segb upkeep REPORT`): what identifies its rows, which of its
+"""How one query is kept current, told in words (`segb upkeep VIEW`): what identifies its rows, which of its
 triple patterns a new triple can match and the steps from each back to the rows it changes, how its filters and
 aggregates are served — or why it is evaluated in full on every request."""
 
@@ -78,6 +78,17 @@ def describe(query: CatalogQuery) -> list[str]:
             f"{_joined(body, plan.allowed_in(body))}"
         )
     return lines
+
+
+def describe_others() -> list[str]:
+    """The kept views that are not queries kept as rows."""
+    return [
+        "graph index: every link and the literals that name and place nodes, kept from each batch's triples (a node's "
+        "kind, time and label computed again when a fact about it, or about the activity it borrows its time from, "
+        "arrives): backend/services/graph/index.py",
+        "SHACL rules' findings (rules/*.ttl): the shapes checked again on the nodes a batch's triples touch: "
+        "backend/services/rules/shape_view.py",
+    ]
 
 
 def _joined(patterns: list[Pattern], allowed: dict[str, frozenset[str]]) -> str:

@@ -296,6 +296,9 @@ class _Walker:
             self.branches[optional] = group
             self.visit(node["p2"], optional)
             self._expression(node.get("expr"), optional)
+            for conjunct in _conjuncts(node.get("expr")):  # `OPTIONAL { ?x a ?c FILTER (?c IN (…)) }` narrows ?c
+                if (listed := _iri_list(conjunct)) is not None:
+                    self.narrowed[(optional, listed[0])] = listed[1]
         elif name == "Union":
             for side in (node["p1"], node["p2"]):
                 branch = self.new_group(group)
