@@ -51,8 +51,8 @@ def differing_paths(iris: list[str]) -> list[str]:
 
 
 # Report columns holding an entity's IRI, the column with its display name, and whether the robots in the
-# same row tell namesakes apart (a model or dataset is best known by the robot that used it; a person by
-# the namespace that registered them, since two robots can meet the same person).
+# same row tell namesakes apart (a model or dataset is best known by the robot that used it; a person by every
+# robot that met them, `met`, since two robots can meet the same person).
 ENTITY_COLUMNS = (
     ("human", "humanName", False),
     ("robot", "robotName", False),
@@ -62,8 +62,12 @@ ENTITY_COLUMNS = (
 )
 
 
-def entity_names(tables: Iterable[Iterable[Mapping[str, object]]]) -> dict[str, Name]:
-    """One name per entity across every row of these report tables, namesakes qualified."""
+def entity_names(
+    tables: Iterable[Iterable[Mapping[str, object]]], met: Mapping[str, str] | None = None
+) -> dict[str, Name]:
+    """One name per entity across every row of these report tables, namesakes qualified: a model or dataset by
+    the robots that used it in these rows, a person by the robots that met them (`met`, from the participants
+    report, so a person has one name on every page), else by the part of their IRIs that differs."""
     labels: dict[str, str] = {}
     robots: dict[str, set[str]] = {}
     for rows in tables:
@@ -75,5 +79,5 @@ def entity_names(tables: Iterable[Iterable[Mapping[str, object]]]) -> dict[str, 
                 labels.setdefault(str(iri), str(row.get(name_column) or short_iri(iri)))
                 if by_robot and row.get("robotName"):
                     robots.setdefault(str(iri), set()).add(str(row["robotName"]))
-    hints = {iri: ", ".join(sorted(names, key=str.casefold)) for iri, names in robots.items()}
+    hints = {**(met or {}), **{iri: ", ".join(sorted(names, key=str.casefold)) for iri, names in robots.items()}}
     return tell_apart(labels, hints)

@@ -20,10 +20,22 @@ QueryResult = QuerySolutions | QueryBoolean | Iterator[Triple]
 # adapter keeps beside the events graph, written with the triples (see Store.apply).
 CURSOR_SUBJECT = NamedNode("urn:segb:journal")
 CURSOR_PREDICATE = NamedNode("urn:segb:appliedThrough")
+# Beside it, with several hosts applying in turn (a shared PostgreSQL state): the newest apply leadership's epoch
+# that wrote the store. A write of an older epoch is refused (`StoreFenced`): its leader lost the lead meanwhile.
+EPOCH_PREDICATE = NamedNode("urn:segb:appliedByEpoch")
 
 
 class StoreError(Exception):
     """A store failed in a way the caller cannot fix by changing its input."""
+
+
+class StoreFenced(Exception):
+    """A write of an apply leadership's epoch older than the one the store has seen: its writer lost the lead (and
+    another process applies now), so it must stop applying. Not a StoreError: retrying would never succeed."""
+
+    def __init__(self, epoch: int, newer: int) -> None:
+        super().__init__(f"the store was written by apply epoch {newer}, newer than this writer's {epoch}")
+        self.epoch, self.newer = epoch, newer
 
 
 class StoreUnavailable(StoreError):
@@ -74,18 +86,24 @@ class Store(Protocol):
     def ping(self) -> None:
         """Raise StoreUnavailable unless the store answers a trivial query."""
 
-    def apply(self, quads: Sequence[Quad], through: int) -> None:
+    def apply(self, quads: Sequence[Quad], through: int, epoch: int | None = None) -> None:
         """Add the quads (any graph name is ignored) to the events graph, idempotently, and record that the
-        journal is applied through entry `through` (in the same transaction where the store has them)."""
+        journal is applied through entry `through` (in the same transaction where the store has them).
+        `epoch`: the writer's apply leadership epoch; refused (StoreFenced) when the store has seen a newer one,
+        and recorded with the cursor. None: the only writer there is (no shared leadership)."""
 
-    def remove(self, quads: Sequence[Quad], through: int) -> None:
+    def remove(self, quads: Sequence[Quad], through: int, epoch: int | None = None) -> None:
         """Remove the quads (as received: the store finds them in its own spelling) from the events graph, keep
         nothing of them in the store's files where the store can manage that, and record that the journal is
-        applied through `through`. Re-applying is harmless."""
+        applied through `through`. Re-applying is harmless. `epoch`: as for `apply`."""
 
-    def clear(self, through: int | None = None) -> int:
+    def clear(self, through: int | None = None, epoch: int | None = None) -> int:
         """Remove every triple of the events graph (recording `through` as applied, when given); return how
-        many there were."""
+        many there were. `epoch`: as for `apply`."""
+
+    def claim(self, epoch: int) -> None:
+        """Record that apply epoch `epoch` writes the store from now on: every write of an older one is refused.
+        Raises StoreFenced when the store has seen a newer epoch already."""
 
     def applied_through(self) -> int | None:
         """The journal entry this store is applied through, or None when it holds no record of it (a store

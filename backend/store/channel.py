@@ -226,13 +226,16 @@ class ChannelStore:
         finally:
             connection.close()
 
-    def apply(self, quads: Sequence[Quad], through: int) -> None:
+    def apply(self, quads: Sequence[Quad], through: int, epoch: int | None = None) -> None:
         raise StoreError("the store is written by the process that opened it, not through its channel")
 
-    def remove(self, quads: Sequence[Quad], through: int) -> None:
+    def remove(self, quads: Sequence[Quad], through: int, epoch: int | None = None) -> None:
         raise StoreError("the store is written by the process that opened it, not through its channel")
 
-    def clear(self, through: int | None = None) -> int:
+    def clear(self, through: int | None = None, epoch: int | None = None) -> int:
+        raise StoreError("the store is written by the process that opened it, not through its channel")
+
+    def claim(self, epoch: int) -> None:
         raise StoreError("the store is written by the process that opened it, not through its channel")
 
     def close(self) -> None:

@@ -18,8 +18,10 @@ from pyoxigraph import Store as OxStore
 from segb_server.backend.store.base import (
     CURSOR_PREDICATE,
     CURSOR_SUBJECT,
+    EPOCH_PREDICATE,
     Bindings,
     QueryResult,
+    StoreFenced,
     StoreRejectedQuery,
     StoreUnavailable,
 )
@@ -75,6 +77,7 @@ class OxigraphStore:
         self._flushing = threading.Lock()  # held while a flush runs: a swap of the store or a close waits for it
         self.flushes = 0  # flushes begun (the memory bound's own count)
         self._applied = self._read_cursor()
+        self._epoch = self._read_epoch()
 
     def ping(self) -> None:
         try:
@@ -82,11 +85,14 @@ class OxigraphStore:
         except OSError as error:
             raise StoreUnavailable(str(error)) from error
 
-    def apply(self, quads: Sequence[Quad], through: int) -> None:
-        # One `extend` is one transaction: the triples and the new cursor are committed together.
+    def apply(self, quads: Sequence[Quad], through: int, epoch: int | None = None) -> None:
+        # One `extend` is one transaction: the triples and the new cursor are committed together. Every writer
+        # is in this process (one process opens the store), so the epoch checked under the write lock is final.
         with self._write_lock:
-            self._store.extend([*quads, _cursor(through)])
+            newer = self._epoch_to_write(epoch)
+            self._store.extend([*quads, _cursor(through), *newer])
             self._drop_cursor_unless(through)
+            self._epoch_written(epoch)
             self._unflushed += len(quads)
             due = self.path is not None and self._unflushed >= self._flush_every
             if due and self._flushing.acquire(blocking=False):  # one at a time: a flush under way covers these too
@@ -102,25 +108,27 @@ class OxigraphStore:
         finally:
             self._flushing.release()
 
-    def remove(self, quads: Sequence[Quad], through: int) -> None:
+    def remove(self, quads: Sequence[Quad], through: int, epoch: int | None = None) -> None:
         """On disk, the store is written anew without the quads: RocksDB and the store's string table keep a
         removed literal's text in their files otherwise (the store never deletes a string it once held). The
         copy is made beside the store, its cursor included, and swapped in whole (finish_rewrite), so a crash
         leaves the old store, erasure not applied, or the new one."""
         with self._write_lock:
+            self._epoch_to_write(epoch)
             gone = set(_spelt_by_the_store(quads))
             if self.path is None or not gone:
                 for quad in gone:
                     self._store.remove(quad)
-                self._set_cursor(through)
+                self._set_cursor(through, epoch)
                 return
             fresh = self.path.with_name(self.path.name + REWRITING)
             shutil.rmtree(fresh, ignore_errors=True)
             copy = OxStore(str(fresh))
             copy.bulk_extend(quad for quad in self._store if quad not in gone and quad.graph_name != CURSOR_GRAPH)
-            copy.add(_cursor(through))
+            kept_epoch = self._epoch if epoch is None else epoch
+            copy.extend([_cursor(through), *([] if kept_epoch is None else [_epoch(kept_epoch)])])
             copy.flush()
-            self._applied = through
+            self._applied, self._epoch = through, kept_epoch
             del copy
             # The copy never takes the old store's path: RocksDB names its files by path, and the old store stays
             # open while a reader still holds it (a query's answer, an export) — what it then writes or deletes
@@ -134,9 +142,33 @@ class OxigraphStore:
                 self._store = OxStore(str(generation))
                 shutil.rmtree(old, ignore_errors=True)  # its text leaves the disk (open files: once their readers end)
 
-    def _set_cursor(self, through: int) -> None:
-        self._store.add(_cursor(through))
+    def _set_cursor(self, through: int, epoch: int | None) -> None:
+        self._store.extend([_cursor(through), *self._epoch_to_write(epoch)])
         self._drop_cursor_unless(through)
+        self._epoch_written(epoch)
+
+    def claim(self, epoch: int) -> None:
+        with self._write_lock:
+            self._record_epoch(epoch)
+
+    def _record_epoch(self, epoch: int | None) -> None:
+        self._store.extend(self._epoch_to_write(epoch))
+        self._epoch_written(epoch)
+
+    def _epoch_to_write(self, epoch: int | None) -> list[Quad]:
+        """Under the write lock: StoreFenced for an epoch older than the store's; the quad recording a newer one."""
+        if epoch is None or epoch == self._epoch:
+            return []
+        if self._epoch is not None and epoch < self._epoch:
+            raise StoreFenced(epoch, self._epoch)
+        return [_epoch(epoch)]
+
+    def _epoch_written(self, epoch: int | None) -> None:
+        """The quad of `epoch` is written (if new): the one before goes."""
+        if epoch is not None and epoch != self._epoch:
+            if self._epoch is not None:
+                self._store.remove(_epoch(self._epoch))
+            self._epoch = epoch
 
     def _drop_cursor_unless(self, through: int) -> None:
         """The cursor is now `through` (its quad written): the one before goes. The store's cursor is kept in
@@ -146,12 +178,15 @@ class OxigraphStore:
             self._store.remove(_cursor(self._applied))
         self._applied = through
 
-    def clear(self, through: int | None = None) -> int:
+    def clear(self, through: int | None = None, epoch: int | None = None) -> int:
         with self._write_lock:
+            self._epoch_to_write(epoch)
             removed = self.count()
             self._store.clear_graph(DefaultGraph())
             if through is not None:
-                self._set_cursor(through)
+                self._set_cursor(through, epoch)
+            else:
+                self._record_epoch(epoch)
         return removed
 
     def checkpoint(self, target: Path) -> None:
@@ -174,6 +209,12 @@ class OxigraphStore:
         for stale in cursors[:-1]:
             self._store.remove(_cursor(stale))
         return cursors[-1] if cursors else None
+
+    def _read_epoch(self) -> int | None:
+        """The newest apply epoch that wrote the store (the latest, should a crash have left two)."""
+        quads = self._store.quads_for_pattern(CURSOR_SUBJECT, EPOCH_PREDICATE, None, CURSOR_GRAPH)
+        epochs = [int(quad.object.value) for quad in quads if isinstance(quad.object, Literal)]
+        return max(epochs, default=None)
 
     def count(self) -> int:
         solutions = self._store.query(_COUNT)
@@ -308,3 +349,7 @@ def read_on_one_thread(open_quads: Callable[[], Iterator[Quad]], size: int) -> I
 
 def _cursor(through: int) -> Quad:
     return Quad(CURSOR_SUBJECT, CURSOR_PREDICATE, Literal(str(through), datatype=XSD_INTEGER), CURSOR_GRAPH)
+
+
+def _epoch(epoch: int) -> Quad:
+    return Quad(CURSOR_SUBJECT, EPOCH_PREDICATE, Literal(str(epoch), datatype=XSD_INTEGER), CURSOR_GRAPH)

@@ -6,6 +6,7 @@ with a speaker link that arrives in a later post. Each test runs on the embedded
 
 from __future__ import annotations
 
+import re
 from collections import defaultdict
 from collections.abc import Iterator
 from pathlib import Path
@@ -17,7 +18,7 @@ from segb_server.backend.api.app import create_app
 from segb_server.backend.store.base import Store
 from segb_server.ui.log_preview import read_log
 from tests.conftest import make_settings
-from tests.support.in_process import InProcess
+from tests.support.in_process import InProcess, UiOverApi
 from tests.support.settle import settle
 
 CORPUS = Path(__file__).resolve().parents[1] / "fixtures" / "reading"
@@ -161,7 +162,9 @@ def statements(served: InProcess) -> dict[tuple[str, str], dict[str, object]]:
 
 def disagreements(stated: dict[tuple[str, str], dict[str, object]]) -> list[str]:
     return [
-        f"{iri} {fact}: {pages}" for (iri, fact), pages in sorted(stated.items()) if len(set(map(str, pages.values()))) > 1
+        f"{iri} {fact}: {pages}"
+        for (iri, fact), pages in sorted(stated.items())
+        if len(set(map(str, pages.values()))) > 1
     ]
 
 
@@ -181,3 +184,18 @@ def test_the_ui_names_a_previewed_subject_by_the_servers_rule(memory_api: InProc
     log = f'<{G}robot> <http://www.w3.org/2000/01/rdf-schema#label> "greeter-7" ; <http://schema.org/name> "Greeter" .'
     preview = read_log(log, names)
     assert preview is not None and [subject.name for subject in preview.subjects] == ["Greeter"]
+
+
+def test_the_people_page_lists_every_human_the_rule_names(tmp_path: Path) -> None:
+    """The People page asks for humans by the server's classes and names (GET /vocabulary): a foaf:Person named by
+    schema:name and a prov:Person named by rdfs:label are listed, by name, beside the real client's humans."""
+    settings = make_settings()
+    with UiOverApi(create_app(settings, demo=True), settings) as served:
+        answer = served.api.post("/ttl", content=(CORPUS / "own-turtle.ttl").read_bytes(), headers=TURTLE)
+        assert answer.status_code == 201
+        page = served.client.get("/people")
+        assert page.status_code == 200
+        listed = re.findall(r"<tr><td>([^<]*)</td><td><code>([^<]+)</code></td>", page.text)
+    shown = {iri: name for name, iri in listed}
+    assert {shown.get(G + "ana"), shown.get(G + "ben")} == {"Ana", "Ben"}, page.text[:2000]
+    assert "Maria" in shown.values() and "Carlos" in shown.values()

@@ -128,6 +128,7 @@ def test_ml_usage_lists_each_use_with_kind_robot_and_training_lineage(published:
     )
     assert (cnn["trainingRun"], cnn["dataset"]) == (published.iri("train_run"), published.iri("faces_v1"))
     assert cnn["score"] == pytest.approx(0.91) and cnn["evaluationName"] == "Accuracy"  # what the score measures
+    assert cnn["trainingRunName"] == "Train emotion CNN"  # the run by its name, as the page shows it
     llm = uses[("model_llm", "activity_reply_juan_1")]
     assert (llm["activityKind"], short(llm["robot"]), llm["provider"]) == ("response", "robot_tiago", "Meta")
     assert llm["trainingRun"] is None

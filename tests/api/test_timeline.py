@@ -74,7 +74,8 @@ ARI_FINDINGS = [
     (
         "2026-03-10T09:00:08Z",
         "finding",
-        "Note: Reply without the dialogue model — ARI replied without using any model to Maria: “Congratulations, Maria!”",
+        "Note: Reply without the dialogue model — ARI replied without using any model to Maria: "
+        "“Congratulations, Maria!”",
     ),
     ("2026-03-10T09:00:20Z", "finding", "Warning: Message never answered — ARI never answered Maria: “Thanks!”"),
 ]

@@ -9,18 +9,9 @@ from pathlib import Path
 import pytest
 
 from tests.cli.test_cli import segb
-from tests.conftest import FIXTURES
+from tests.cli.test_people_cli import BOB
 
 pytestmark = pytest.mark.processes  # runs the segb command
-
-BOB = "https://example.org/segb/robots/mirror/v1/human_bob"
-
-
-@pytest.fixture
-def data_dir(tmp_path: Path) -> Path:
-    loaded = segb("import", "--data-dir", str(tmp_path), str(FIXTURES / "sample_two_robots.ttl"))
-    assert loaded.returncode == 0, loaded.stderr
-    return tmp_path
 
 
 def receipts(data_dir: Path) -> list[tuple[object, ...]]:

@@ -6,7 +6,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-
 from pyoxigraph import Literal, NamedNode, Quad
 
 from segb_server.backend.cli import main
@@ -74,7 +73,9 @@ def publish_corpus(data: Path) -> None:
     assert main(["import", "--data-dir", str(data), str(CORPUS / "own-turtle.ttl")]) == 0
 
 
-def test_diff_finds_the_kept_rows_equal_to_the_query_in_full(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_diff_finds_the_kept_rows_equal_to_the_query_in_full(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     publish_corpus(tmp_path / "data")
     capsys.readouterr()
     assert main(["upkeep", "--data-dir", str(tmp_path / "data"), "--diff", "conversations"]) == 0

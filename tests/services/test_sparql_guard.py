@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 
 from segb_server.backend.services.errors import InvalidQuery, PayloadTooLarge
-from segb_server.backend.services.sparql.guard import MAX_QUERY_BYTES, QueryTooLong, guard_query
 from segb_server.backend.services.sparql.catalog import read_header
+from segb_server.backend.services.sparql.guard import MAX_QUERY_BYTES, QueryTooLong, guard_query
 
 EVENTS = "http://amor-segb/events"
 SPARQL_DIR = Path(__file__).resolve().parents[2] / "sparql"

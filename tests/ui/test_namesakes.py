@@ -13,21 +13,21 @@ from tests.conftest import UiStack
 pytestmark = pytest.mark.browser
 
 
-def test_filters_and_tables_tell_the_two_marias_apart(demo_stack: UiStack, open_at: Any) -> None:
+def test_filters_and_tables_tell_the_two_marias_apart_by_who_met_them(demo_stack: UiStack, open_at: Any) -> None:
     page = open_at("desktop")
     page.goto(f"{demo_stack.ui_url}/reports")
     humans = page.locator("select[name=human] option").all_inner_texts()
     assert len(humans) == len(set(humans))
-    assert "Maria (ari/v1/human_maria)" in humans and "Maria (mirror/v1/human_maria)" in humans
+    assert "Maria (ARI, TIAGo)" in humans and "Maria (Emotion Mirror)" in humans
     assert "Carlos" in humans  # a name nobody else has stays as it is
 
     shown = page.locator("#report-participants tbody tr td:first-child").all_inner_texts()
-    assert sorted(set(shown)) == ["Carlos", "Maria (ari/v1/human_maria)", "Maria (mirror/v1/human_maria)"]
+    assert sorted(set(shown)) == ["Carlos", "Maria (ARI, TIAGo)", "Maria (Emotion Mirror)"]
     charts = page.locator("#report-emotion-timeline figcaption").all_inner_texts()
     assert len(charts) == len(set(charts))
-    assert "Maria (mirror/v1/human_maria) (human)" in charts
+    assert "Maria (Emotion Mirror) (human)" in charts
 
-    page.select_option("select[name=human]", label="Maria (mirror/v1/human_maria)")
+    page.select_option("select[name=human]", label="Maria (Emotion Mirror)")
     page.click("form.filters button[type=submit]")
     page.wait_for_load_state()
     pairs = page.locator("#report-participants tbody tr").all_inner_texts()

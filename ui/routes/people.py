@@ -9,6 +9,7 @@ from urllib.parse import quote
 from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse, Response
 
+from segb_server.ui import vocabulary
 from segb_server.ui.api_client import BackendError
 from segb_server.ui.csrf import check_csrf
 from segb_server.ui.forms import read_form
@@ -17,16 +18,31 @@ from segb_server.ui.pages import ADMIN, backend, render, require, token
 router = APIRouter()
 
 CONFIRMATION = "ERASE"
-PEOPLE = """PREFIX oro: <http://kb.openrobots.org#>
-PREFIX foaf: <http://xmlns.com/foaf/0.1/>
-SELECT ?human (SAMPLE(?given) AS ?name) WHERE { ?human a oro:Human OPTIONAL { ?human foaf:firstName ?given } }
-GROUP BY ?human ORDER BY ?name ?human LIMIT 1000"""
+
+
+def people_query(known: vocabulary.Vocabulary) -> str:
+    """Every human the log holds with their display name, by the server's rules of reading (GET /vocabulary: the
+    classes that make a human, the name predicates best first)."""
+    classes = " ".join(f"<{iri}>" for iri in known.human_classes)
+    names = [f"?name{index}" for index in range(len(known.name_predicates))]
+    optionals = " ".join(
+        f"OPTIONAL {{ ?human <{predicate}> {name} }}"
+        for predicate, name in zip(known.name_predicates, names, strict=True)
+    )
+    named = f"BIND (COALESCE({', '.join(names)}) AS ?named)" if names else ""
+    return (
+        f"SELECT ?human (SAMPLE(?named) AS ?name) WHERE {{ ?human a ?class . VALUES ?class {{ {classes} }} "
+        f"{optionals} {named} }} GROUP BY ?human ORDER BY ?name ?human LIMIT 1000"
+    )
+
+
 EXPORT_FORMATS = {"html": "text/html; charset=utf-8", "turtle": "text/turtle; charset=utf-8"}
 SUFFIX = {"html": "html", "turtle": "ttl"}
 
 
 async def _people(request: Request) -> list[dict[str, str]]:
-    answer = (await backend(request).sparql(PEOPLE, "json", token=token(request))).json()
+    known = await vocabulary.ensure(backend(request))
+    answer = (await backend(request).sparql(people_query(known), "json", token=token(request))).json()
     return [
         {"iri": row["human"]["value"], "name": row.get("name", {}).get("value", "")}
         for row in answer["results"]["bindings"]

@@ -102,7 +102,7 @@ async def reports_overview(request: Request) -> HTMLResponse:
 
     choices, *tables = await asyncio.gather(participant_choices(request), *(fetch(name) for name in names))
     # One name per entity on the whole page: a namesake carries the same qualifier in every report.
-    shown = entity_names(table["rows"] for table in tables)
+    shown = entity_names((table["rows"] for table in tables), choices["met"])
     sections = [_section(name, table, described[name], shown) for name, table in zip(names, tables, strict=True)]
     await _mark_findings(request, sections)
     return render(
@@ -133,7 +133,7 @@ async def one_report(request: Request, name: str) -> HTMLResponse:
         client.get_json(f"/reports/{name}", token=user_token, params={**filters, "limit": limit, "offset": offset}),
         participant_choices(request),
     )
-    section = _section(name, table, described, entity_names([table["rows"]]))
+    section = _section(name, table, described, entity_names([table["rows"]], choices["met"]))
     await _mark_findings(request, [section])
     return render(
         request,

@@ -10,6 +10,11 @@ released when its holder exits or is killed, and another worker takes over withi
 With the state in PostgreSQL (STATE_URL), API processes on several hosts share one journal and one store, so
 applying needs one doer among them all: `SharedLeadership`, an advisory lock in that database. Each host still
 keeps its own views (they live in its DATA_DIR), under its own `Leadership`.
+
+A holder cut off from the database learns it only at its next check (up to `VERIFY_SECONDS` later) while another
+process may lead already, so each acquisition of a `SharedLeadership` draws a new epoch (`state/epochs.py`), a
+fencing token: the applier writes with it, and the store and the journal's state refuse an older one. `epoch` is
+None for the other leaderships: one host's processes share one lock whose holder cannot lose it unknowingly.
 """
 
 from __future__ import annotations
@@ -21,6 +26,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from segb_server.backend.state.epochs import draw_beyond, next_epoch
 from segb_server.backend.state.file_lock import FileLock
 
 logger = logging.getLogger("segb.leadership")
@@ -32,6 +38,8 @@ VIEWS_LOCK_FILE = "views.lock"
 
 class Leadership:
     """Held by at most one process per lock file; `None` as the path: this process alone (always held)."""
+
+    epoch: int | None = None  # no fencing token: the holder of an `flock` cannot lose it while it lives
 
     def __init__(self, path: Path | None, doing: str = "applies the journal and keeps the views current") -> None:
         self.path = path
@@ -75,6 +83,7 @@ class Following:
     the journal applied by the API process, for the views' process)."""
 
     held = False
+    epoch: int | None = None
 
     def __init__(self, who: str) -> None:
         self.where = who
@@ -91,7 +100,9 @@ class SharedLeadership:
     released by the database as soon as its connection ends (the holder exits, is killed, or is cut off).
 
     The connection stays open between attempts: a follower asks on every wake of its applier (and, with
-    INGEST_ACK=store, on every post), and a new PostgreSQL connection costs a server process."""
+    INGEST_ACK=store, on every post), and a new PostgreSQL connection costs a server process.
+
+    Each acquisition draws a new `epoch`, one above every holder's before (the fencing token its writes carry)."""
 
     VERIFY_SECONDS = 0.5  # how often a holder checks its connection still holds the lock
 
@@ -100,7 +111,9 @@ class SharedLeadership:
 
         self.url = url
         self.where = f"the {name} lock of {redacted(url)}"
+        self._name = name
         self._key = lock_key(f"leader:{name}")
+        self.epoch: int | None = None  # drawn each time the lock is taken
         self._connection: Any = None
         self._holding = False
         self._verified = 0.0
@@ -119,6 +132,8 @@ class SharedLeadership:
                 return True
             try:
                 row = self._connected().execute("SELECT pg_try_advisory_lock(%s)", (self._key,)).fetchone()
+                if row and row[0]:
+                    self.epoch = next_epoch(self._connection, self._name)
             except Exception as error:  # the database is away: nobody can lead through it just now
                 self._drop_connection()
                 if not self._unreachable:
@@ -129,8 +144,29 @@ class SharedLeadership:
             if not (row and row[0]):
                 return False
             self._holding, self._verified = True, time.monotonic()
-        logger.info("this process (pid %d) holds %s: it applies the journal", os.getpid(), self.where)
+        logger.info(
+            "this process (pid %d) holds %s (apply epoch %s): it applies the journal",
+            os.getpid(),
+            self.where,
+            self.epoch,
+        )
         return True
+
+    def draw_beyond(self, seen: int) -> int | None:
+        """The holder, when the store has seen apply epoch `seen` that this database never drew: a new epoch
+        above it (see `epochs.draw_beyond`); None when `seen` was drawn here (a newer leader's) or the lock is lost."""
+        with self._lock:
+            if not self._holding:
+                return None
+            try:
+                drawn = draw_beyond(self._connection, self._name, seen)
+            except Exception:  # the connection is gone, and with it the lock
+                logger.warning("lost %s with its connection", self.where)
+                self._drop_connection()
+                return None
+            if drawn is not None:
+                self.epoch = drawn
+            return drawn
 
     def _connected(self) -> Any:
         from segb_server.backend.state.postgres import connect

@@ -9,6 +9,12 @@ one at a time applies everything the journal holds.
 With several API processes on one journal (`segb serve --workers N`, or hosts sharing a PostgreSQL state),
 only the process holding the leadership applies; the others follow: they read the store's cursor instead, so
 their readiness, backlog limit and `INGEST_ACK=store` waits see what the leader applied.
+
+A leader among hosts (`SharedLeadership`) may lose the lead without knowing it for a moment (its database
+connection cut). Its writes carry its apply epoch, and a newer leader claims the store for its own epoch before
+it reads the store's cursor: from then on the store (and the journal's state) refuse the older one. The refused
+applier stops where it is, mid-batch, says why, and steps down: it follows the new leader, which applies from
+the cursor it read, so no step is written twice and none out of order.
 """
 
 from __future__ import annotations
@@ -21,16 +27,18 @@ from dataclasses import dataclass
 from pyoxigraph import Quad, RdfFormat, parse
 
 from segb_server.backend.services.errors import OUTAGES
-from segb_server.backend.services.ops.leadership import Lead, Leadership
+from segb_server.backend.services.ops.leadership import Lead, Leadership, SharedLeadership
 from segb_server.backend.services.writing.cursor import Cursor
 from segb_server.backend.services.writing.journal import Journal, JournalEntry
-from segb_server.backend.store.base import Store
+from segb_server.backend.state.epochs import StateFenced
+from segb_server.backend.store.base import Store, StoreFenced
 
 logger = logging.getLogger("segb.applier")
 
 ENTRIES_PER_READ = 500
 FIRST_RETRY_SECONDS = 0.2
 MAX_RETRY_SECONDS = 5.0
+FENCED = (StoreFenced, StateFenced)  # a write of this applier's epoch refused: a newer leader applies
 FOLLOW_SECONDS = 0.5  # how often a following process reads the store's cursor, and tries to take the lead
 WAIT_POLL_SECONDS = 0.05  # how often a follower waiting for one entry (INGEST_ACK=store) asks the store
 
@@ -81,6 +89,7 @@ class Applier:
         # leader reads it before applying (the store may come back restored or wiped). What was last known
         # stays meanwhile: the backlog and the lag count from it, not from the journal's first entry.
         self._cursor_read = False
+        self._epoch: int | None = None  # the apply epoch the store was claimed for (None: no shared leadership)
         self._apply_lock = threading.Lock()
         self._wake = threading.Event()
         self._stop = threading.Event()
@@ -99,6 +108,8 @@ class Applier:
                     self._read_cursor()
             else:
                 self.follow()
+        except FENCED as refused:
+            self._step_down(refused)
         except OUTAGES as error:
             self.last_error = str(error)
         self._thread = threading.Thread(target=self._run, name="segb-applier", daemon=True)
@@ -159,6 +170,9 @@ class Applier:
             while entries := self.journal.entries_after(self.applied, ENTRIES_PER_READ):
                 for step in self._steps(entries):
                     self._apply(step)
+        except FENCED as refused:
+            self._step_down(refused)
+            return self.cursor.value
         except OUTAGES as error:
             self._cursor_read = False  # the store may come back restored or wiped: read its cursor again
             self.last_error = str(error)
@@ -197,10 +211,49 @@ class Applier:
             self.last_error = str(error)
 
     def _read_cursor(self) -> None:
-        """The leader, under `_apply_lock`: once after start and after each outage, the store's own cursor."""
-        if not self._cursor_read:
-            self.cursor.set(self._starting_point())
-            self._cursor_read = True
+        """The leader, under `_apply_lock`: once after start, after each outage and for each new apply epoch, the
+        store's own cursor. A new epoch claims the store first: what an older leader still writes is refused from
+        then on, so the cursor read is where it stopped for good."""
+        epoch = self.leadership.epoch
+        if self._cursor_read and epoch == self._epoch:
+            return
+        if epoch is not None and epoch != self._epoch:
+            epoch = self._claim(epoch)
+        self._epoch = epoch
+        self.cursor.set(self._starting_point())
+        self._cursor_read = True
+
+    def _claim(self, epoch: int) -> int:
+        """Claim the store for `epoch`, or for a newer one drawn when the store's own epoch was never drawn by this
+        state database (restored from an older backup): no leader could ever write otherwise."""
+        try:
+            self.store.claim(epoch)
+            return epoch
+        except StoreFenced as refused:
+            leadership = self.leadership
+            beyond = leadership.draw_beyond(refused.newer) if isinstance(leadership, SharedLeadership) else None
+            if beyond is None:
+                raise
+            logger.warning(
+                "the store was written by apply epoch %d, which the state database never drew (restored from an "
+                "older backup?): apply epochs go on from %d",
+                refused.newer,
+                beyond,
+            )
+        self.store.claim(beyond)
+        return beyond
+
+    def _step_down(self, refused: StoreFenced | StateFenced) -> None:
+        """A write of this applier's epoch was refused: another process leads with a newer one. Stop applying
+        (the step under way is the new leader's to write) and follow it."""
+        logger.warning(
+            "stopped applying the journal after entry %d: %s; another process leads now, this one follows it",
+            self.applied,
+            str(refused),  # not the error itself: its traceback would outlive this thread in a handler's records
+        )
+        self._cursor_read = False
+        if self.leadership.epoch == refused.epoch:  # not a lead taken again since, under a newer epoch
+            self.leadership.release()
 
     def _starting_point(self) -> int:
         cursor = self.store.applied_through()
@@ -214,7 +267,7 @@ class Applier:
                 cursor,
                 erased,
             )
-            self.store.clear(through=None)
+            self.store.clear(through=None, epoch=self._epoch)
             cursor = None
         if cursor is None or cursor > head:
             if cursor is not None:
@@ -251,18 +304,19 @@ class Applier:
 
     def _apply(self, entries: list[JournalEntry]) -> None:
         through = entries[-1].sequence
+        epoch = self._epoch
         if entries[0].action == "delete_all":
-            self.store.clear(through=through)
+            self.store.clear(through=through, epoch=epoch)
             step = Applied(entries, [], cleared=True)
         elif entries[0].action == "erase":
             removed = entries[0].removed
             # Empty once applied: a store restored from before the erasure gets the posts already redacted.
-            self.store.remove(list(parse(removed, RdfFormat.N_TRIPLES)) if removed else [], through)
-            self.journal.erasure_applied(through)
+            self.store.remove(list(parse(removed, RdfFormat.N_TRIPLES)) if removed else [], through, epoch)
+            self.journal.erasure_applied(through, epoch)
             step = Applied(entries, [], cleared=False, erased=True)
         else:
             quads = quads_of(entries)
-            self.store.apply(quads, through)
+            self.store.apply(quads, through, epoch)
             step = Applied(entries, quads, cleared=False)
         self.cursor.advance(through)
         for listener in self._listeners:

@@ -46,6 +46,7 @@ from segb_server.backend.services.writing.receipts import (
 )
 from segb_server.backend.services.writing.redaction import RedactionRecord, content_digest
 from segb_server.backend.state.database import Database
+from segb_server.backend.state.epochs import refuse_older_epoch
 
 EMPTY_SHA256 = hashlib.sha256(b"").hexdigest()
 _ROWS_PER_INSERT = 400  # digests per INSERT statement (SQLite allows 32,766 parameters)
@@ -234,9 +235,12 @@ class Journal(JournalReads):
             self._any_erased = self._any_erased or erasure.withhold
         return ErasureDone(receipt, len(redaction.items), redaction.removed)
 
-    def erasure_applied(self, through: int) -> None:
-        """The store has applied every erasure through `through`: the lines they removed are kept no longer."""
+    def erasure_applied(self, through: int, epoch: int | None = None) -> None:
+        """The store has applied every erasure through `through`: the lines they removed are kept no longer.
+        `epoch`: the applier's apply epoch; StateFenced (nothing changed) when a newer one was drawn since."""
         with self._lock, self._transaction() as connection:
+            if epoch is not None:
+                refuse_older_epoch(connection, epoch)
             connection.execute("DELETE FROM erasure_pending WHERE sequence <= ?", (through,))
 
     def _clear(self, log_id: str, user: str, claimed_user: str | None) -> tuple[Receipt, int]:

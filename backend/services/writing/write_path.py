@@ -33,6 +33,7 @@ from segb_server.backend.services.upkeep.seen_terms import SEEN_TERMS_FILE, Seen
 from segb_server.backend.services.writing.applier import Applied, Applier
 from segb_server.backend.services.writing.journal import Journal
 from segb_server.backend.services.writing.journal_file import journal_path
+from segb_server.backend.state.epochs import APPLY_LOCK
 from segb_server.backend.state.opening import open_state
 from segb_server.backend.store.base import Store
 
@@ -231,7 +232,7 @@ def _leaderships(settings: Settings, role: Role, in_memory: bool) -> tuple[Lead,
     if role is Role.VIEWS:
         return Following("the API process"), Leadership(settings.data_dir / VIEWS_LOCK_FILE, "keeps the views current")
     leader = Leadership(None if in_memory else settings.data_dir / LOCK_FILE)
-    apply = SharedLeadership(settings.state_url, "applier") if settings.state_url else leader
+    apply = SharedLeadership(settings.state_url, APPLY_LOCK) if settings.state_url else leader
     if role is Role.API:
         if not settings.state_url:
             leader.doing = "applies the journal"
