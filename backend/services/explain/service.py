@@ -20,7 +20,19 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from segb_server.backend.reading import HEARD_MESSAGE, activity_kind, speaker, target_kind
+from segb_server.backend.reading import (
+    CAUSE_LINKS,
+    DERIVED_FROM,
+    HEARD_MESSAGE,
+    INFORMED_BY,
+    TRIGGERED_BY_ACTIVITY,
+    TRIGGERED_BY_ENTITY,
+    activity_kind,
+    speaker,
+    target_kind,
+)
+from segb_server.backend.reading import GENERATED_BY as WAS_GENERATED_BY
+from segb_server.backend.reading import INTERMEDIATE_ACTIVITY as INTERMEDIATE
 from segb_server.backend.services.errors import NotFound
 from segb_server.backend.services.graph.facts import normal_time
 from segb_server.backend.services.graph.service import GraphService, local_name
@@ -30,13 +42,8 @@ SEGB, PROV, SCHEMA, ORO = PREFIXES["segb"], PREFIXES["prov"], PREFIXES["schema"]
 ONYX, OA, MLS, SOSA = PREFIXES["onyx"], PREFIXES["oa"], PREFIXES["mls"], PREFIXES["sosa"]
 RDFS = PREFIXES["rdfs"]
 
-TRIGGERED_BY_ACTIVITY = SEGB + "triggeredByActivity"
-TRIGGERED_BY_ENTITY = SEGB + "triggeredByEntity"
-INTERMEDIATE = SEGB + "intermediateActivity"
 PRODUCED = SEGB + "producedEntityResult"
 GENERATED = PROV + "generated"
-WAS_GENERATED_BY = PROV + "wasGeneratedBy"
-DERIVED_FROM = PROV + "wasDerivedFrom"
 USED_MODEL = SEGB + "usedMLModel"
 ABOUT = SCHEMA + "about"
 SENDER = SCHEMA + "sender"
@@ -46,10 +53,7 @@ HAS_TARGET = OA + "hasTarget"
 FEATURE_OF_INTEREST = SOSA + "hasFeatureOfInterest"
 # The only links the walk follows backwards: a robot, human or model is the object of a link from each of its
 # activities (hundreds of thousands after a month), and none of those is read to tell a story.
-FOLLOWED_INCOMING = frozenset({
-    PRODUCED, GENERATED, WAS_GENERATED_BY, HAS_EMOTION, TRIGGERED_BY_ACTIVITY, TRIGGERED_BY_ENTITY, INTERMEDIATE,
-    DERIVED_FROM, FEATURE_OF_INTEREST,
-})  # fmt: skip
+FOLLOWED_INCOMING = frozenset({PRODUCED, GENERATED, HAS_EMOTION, FEATURE_OF_INTEREST, *CAUSE_LINKS})
 # The literals a story tells besides names and times (which the graph index keeps anyway).
 TOLD_LITERALS = frozenset({
     RDFS + "label", SCHEMA + "text", SCHEMA + "version", ONYX + "hasEmotionIntensity", ONYX + "algorithmConfidence",
@@ -205,8 +209,10 @@ class _Reader:
         return list(dict.fromkeys(node.out(PRODUCED) + node.out(GENERATED) + node.into(WAS_GENERATED_BY)))
 
     def causes(self, activity: str) -> list[str]:
+        """Upstream along the rule of reading's cause links: what triggered or informed it, what made the entities
+        it was triggered by, what made the entities its results derive from."""
         node = self.get(activity)
-        found = node.out(TRIGGERED_BY_ACTIVITY) + node.out(INTERMEDIATE)
+        found = node.out(TRIGGERED_BY_ACTIVITY) + node.out(INTERMEDIATE) + node.out(INFORMED_BY)
         for entity in node.out(TRIGGERED_BY_ENTITY):
             found += self.activities_of(self.get(entity))
         for entity in self.produced(activity):
@@ -215,8 +221,9 @@ class _Reader:
         return [iri for iri in dict.fromkeys(found) if iri != activity]
 
     def effects(self, activity: str) -> list[str]:
+        """Downstream along the same links (`causes` read the other way)."""
         node = self.get(activity)
-        found = node.into(TRIGGERED_BY_ACTIVITY) + node.into(INTERMEDIATE)
+        found = node.into(TRIGGERED_BY_ACTIVITY) + node.into(INTERMEDIATE) + node.into(INFORMED_BY)
         for entity in self.produced(activity):
             produced = self.get(entity)
             found += produced.into(TRIGGERED_BY_ENTITY)
