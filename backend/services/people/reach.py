@@ -18,13 +18,11 @@ from segb_server.backend.services.errors import InvalidParameter, NotFound
 from segb_server.backend.services.sparql.catalog import CatalogQuery
 from segb_server.backend.store.base import Store, select
 from segb_server.backend.store.terms import bind_rows
-from segb_server.backend.vocabulary import PERSON_CLASSES, PREFIXES, compact, kind_of
+from segb_server.backend.vocabulary import AGENT_CLASSES, PERSON_CLASSES, PREFIXES, ROBOT_CLASSES, compact, kind_of
 
 RESOURCES_PER_QUERY = 200
-ROBOT = PREFIXES["oro"] + "Robot"
 # Types that make a resource someone (or something acting): an erasure of one person never takes another.
-AGENTS = PERSON_CLASSES | {
-    ROBOT,
+AGENTS = AGENT_CLASSES | {
     PREFIXES["prov"] + "Agent",
     PREFIXES["prov"] + "SoftwareAgent",
     PREFIXES["prov"] + "Organization",
@@ -117,7 +115,7 @@ def check_erasable(store: Store, human: str) -> None:
             "iri", f"is not a person: the log does not type <{human}> as {classes}; only a person is erased"
         )
     check_person_types(human, person.types)
-    also = person.types & ({ROBOT} | VOCABULARY_TERMS)  # a person may be an agent too, never a robot or a term
+    also = person.types & (ROBOT_CLASSES | VOCABULARY_TERMS)  # a person may be an agent too, never a robot or a term
     if also:
         kinds = ", ".join(sorted(compact(iri) for iri in also))
         raise InvalidParameter("iri", f"is not a person alone: the log also types <{human}> as {kinds}")
