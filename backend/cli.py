@@ -334,7 +334,7 @@ def _rebuild(args: argparse.Namespace) -> int:
 def _upkeep(args: argparse.Namespace) -> int:
     from segb_server.backend.services.rules.catalog import RuleCatalog
     from segb_server.backend.services.sparql.catalog import Catalog
-    from segb_server.backend.services.upkeep.kept_queries.describe import describe, describe_others
+    from segb_server.backend.services.views.kept_queries.describe import describe, describe_others
 
     settings = _settings(args, "sparql_dir", "rules_dir")
     views = _kept_queries(Catalog(settings.sparql_dir), RuleCatalog(settings.rules_dir))
@@ -367,7 +367,7 @@ def _kept_queries(catalog: Catalog, rules: RuleCatalog) -> list[CatalogQuery]:
 
 
 def _upkeep_diff(settings: Settings, query: CatalogQuery, key: str | None) -> int:
-    from segb_server.backend.services.upkeep.kept_queries.diff import NotKept, diff_view, told
+    from segb_server.backend.services.views.kept_queries.diff import NotKept, diff_view, told
 
     with _services(settings) as services:
         writes = services.writes

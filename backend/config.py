@@ -261,11 +261,11 @@ class Settings(BaseSettings):
 
     @property
     def effective_views_max_lag_seconds(self) -> float:
-        """A remote store's views ask it queries it plans anew each batch (docs/performance.md section 11), so
-        their batches are dearer, and posts held at 1.5 s waited more often than at 2 (one robot on Virtuoso,
-        3 minutes: 60 posts/s against 75). Held at 2.5 s, 15 minutes gave no more posts (56 a second) and slower
-        pages. With a batch's time on top, the reports stay within 2 s of the embedded store and within 5 s of a
-        remote one (the soak's bounds)."""
+        """A remote store's views ask it queries it plans anew each batch
+        (docs/performance.md#virtuoso-and-the-embedded-store), so their batches are dearer, and posts held at 1.5 s
+        waited more often than at 2 (one robot on Virtuoso, 3 minutes: 60 posts/s against 75). Held at 2.5 s, 15
+        minutes gave no more posts (56 a second) and slower pages. With a batch's time on top, the reports stay
+        within 2 s of the embedded store and within 5 s of a remote one (the soak's bounds)."""
         if self.views_max_lag_seconds is not None:
             return self.views_max_lag_seconds
         return 1.5 if self.store_is_local else 2.0

@@ -6,7 +6,7 @@ the settings given on the command line are handed down as environment variables.
 (the journal's SQLite transactions keep one hash chain) and serves reads; one of them, the holder of the
 leadership lock (services/ops/leadership.py), also applies the journal and keeps the views current. Only a
 remote store can be shared so: the embedded store is opened by one process. With the embedded store the views
-are kept by a process of their own that the one API process starts (VIEWS_PROCESS, `backend/views_process.py`);
+are kept by a process of their own that the one API process starts (VIEWS_PROCESS, `backend/services/views/process.py`);
 with VIEWS_PROCESS=true on a remote store, by one the supervisor of the workers starts.
 """
 
@@ -32,7 +32,7 @@ import uvicorn
 from segb_server.backend.collector import tune_collector
 from segb_server.backend.config import Settings
 from segb_server.backend.listening import CannotListen, Listener
-from segb_server.backend.views_process import ViewsHome, ViewsProcess, views_home
+from segb_server.backend.services.views.process import ViewsHome, ViewsProcess, views_home
 
 if TYPE_CHECKING:
     from fastapi import FastAPI

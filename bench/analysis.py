@@ -228,7 +228,7 @@ def live_notes(live: dict[tuple[str, int], LiveReports]) -> list[str]:
             "(`# param`), and is kept the same way without any Python (docs/reports.md, *How reports stay fast*).",
             "",
             "**The graph views and explanations are read from the graph index**",
-            "(`backend/services/graph/index.py`): a first view or a neighbourhood is a few indexed SQLite",
+            "(`backend/services/views/graph_index.py`): a first view or a neighbourhood is a few indexed SQLite",
             "queries whatever the size of the log; a label search or a time window scans the index's nodes. The",
             "first view, the one each visit opens with, is kept until a change reaches what it draws (new",
             "activities sort after its last node), so under a stream of posts it is mostly answered as kept. It is",

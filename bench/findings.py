@@ -27,7 +27,7 @@ from bench.measure import Latency
 from bench.server import segb_server
 from segb_server.backend.config import Settings
 from segb_server.backend.services.container import build_services
-from segb_server.backend.services.upkeep.delta import Delta
+from segb_server.backend.services.views.delta import Delta
 from segb_server.backend.store.factory import open_store
 from tests.support.robot_posts import LivePost, live_posts, robot_of
 

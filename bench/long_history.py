@@ -37,7 +37,7 @@ from bench.one_robot import SECONDS_PER_VISIT, OneRobot, one_robot
 from segb_server.backend.config import Settings
 from segb_server.backend.services.container import VIEW_FILES, Services, build_services
 from segb_server.backend.services.ingest.payloads import RdfPayload
-from segb_server.backend.services.upkeep.keeper import MAX_REST_SECONDS
+from segb_server.backend.services.views.keeper import MAX_REST_SECONDS
 from segb_server.backend.store.factory import open_store
 from segb_server.backend.store.oxigraph import OxigraphStore
 

@@ -4,10 +4,10 @@
     python -m bench.versions --against HEAD~3 --views off      # the views off (`KEEP_VIEWS=false`)
     python -m bench.versions --against f77806e --seconds 60 --rounds 5
 
-This machine's speed drifts by some 15% within an hour (docs/performance.md section 11): the same commit posted
-206 times a second at one moment and 174 forty minutes later. Two versions measured one after the other then
-differ by the drift as much as by the change. Here they take turns instead, in the order A B B A, A B B A, … so
-that a drift within a round weighs on both alike, and the table gives every run and the medians.
+This machine's speed drifts by some 15% within an hour (docs/performance.md#how-to-read-these-figures): the same
+commit posted 206 times a second at one moment and 174 forty minutes later. Two versions measured one after the
+other then differ by the drift as much as by the change. Here they take turns instead, in the order A B B A,
+A B B A, … so that a drift within a round weighs on both alike, and the table gives every run and the medians.
 
 Each run is `segb serve --only api` on a fresh embedded store, the soak's posting (bench/soak.py: 4 client
 threads posting one robot's visits as fast as answered, no auditor), timed over `--seconds` after 5 s of warm-up,

@@ -8,7 +8,7 @@ import pytest
 from pydantic import ValidationError
 
 from segb_server.backend.config import Settings
-from segb_server.backend.views_process import views_home
+from segb_server.backend.services.views.process import views_home
 from tests.conftest import make_settings
 
 README = (Path(__file__).resolve().parents[1] / "README.md").read_text()

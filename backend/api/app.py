@@ -41,12 +41,12 @@ from segb_server.backend.services.container import REQUIRED_QUERIES, build_servi
 from segb_server.backend.services.ops.server_log import ServerLog
 from segb_server.backend.services.ops.store_monitor import StoreMonitor
 from segb_server.backend.services.sparql.catalog import Catalog
+from segb_server.backend.services.views.channel import StoreChannel
+from segb_server.backend.services.views.process import CHANNEL_NICENESS, ViewsHome, ViewsProcess, ViewsStatus
 from segb_server.backend.services.writing.write_path import Role
 from segb_server.backend.store.base import Store
-from segb_server.backend.store.channel import StoreChannel
 from segb_server.backend.store.factory import open_store
 from segb_server.backend.store.oxigraph import OxigraphStore
-from segb_server.backend.views_process import CHANNEL_NICENESS, ViewsHome, ViewsProcess, ViewsStatus
 
 logger = logging.getLogger("segb.api")
 
@@ -88,7 +88,7 @@ def create_app(
 ) -> FastAPI:
     """The API app. With `store` given, the app uses it and leaves closing it to the caller. With `demo`, the
     demo dataset is loaded into an empty store before the first request is served. `views_home`: which process
-    keeps the views (`backend/views_process.py`); this one's own thread unless `segb serve` says otherwise."""
+    keeps the views (`backend/services/views/process.py`); this one's own thread unless `segb serve` says otherwise."""
     settings = settings or Settings()
     # Loaded here, before the app exists: the report routes and their documentation are made from it.
     catalog = Catalog(settings.sparql_dir, required=REQUIRED_QUERIES)

@@ -8,12 +8,12 @@ from segb_server.backend.config import Settings
 from segb_server.backend.services.evidence.bundle import WINDOW, EvidenceService
 from segb_server.backend.services.evidence.key import ServerKey
 from segb_server.backend.services.explain.service import TOLD_LITERALS, ExplainService
-from segb_server.backend.services.graph.index import GraphIndex
 from segb_server.backend.services.graph.service import GraphService
 from segb_server.backend.services.ingest.service import IngestService
 from segb_server.backend.services.ops.result_cache import DataVersion, ResultCache
 from segb_server.backend.services.ops.server_log import ServerLog
 from segb_server.backend.services.people.erasure import RULE as ERASURE_RULE
+from segb_server.backend.services.people.mentions import RULE as MENTIONS_RULE
 from segb_server.backend.services.people.erasure import ErasureService
 from segb_server.backend.services.people.export import STORY, PersonExport
 from segb_server.backend.services.people.places import forgetting
@@ -22,7 +22,6 @@ from segb_server.backend.services.reports.service import FOLDER as REPORTS_FOLDE
 from segb_server.backend.services.reports.service import ReportService
 from segb_server.backend.services.rules.catalog import RuleCatalog
 from segb_server.backend.services.rules.service import FindingsService
-from segb_server.backend.services.rules.shape_view import ShapeFindings
 from segb_server.backend.services.rules.shapes import ShapeRule
 from segb_server.backend.services.shared_context.policy import Policy
 from segb_server.backend.services.shared_context.service import SharedContextService
@@ -34,11 +33,13 @@ from segb_server.backend.services.timeline.kinds import FOLDER as TIMELINE_FOLDE
 from segb_server.backend.services.timeline.kinds import KINDS, query_name
 from segb_server.backend.services.timeline.service import TimelineService
 from segb_server.backend.services.timeline.sources import KeptSource
-from segb_server.backend.services.upkeep.keeper import KeptView
-from segb_server.backend.services.upkeep.kept_queries.projection import KeptQueries
-from segb_server.backend.services.upkeep.kept_queries.rows import KeptRows
-from segb_server.backend.services.upkeep.seen_terms import SEEN_TERMS_FILE
-from segb_server.backend.services.writing.views_pace import ViewsPace
+from segb_server.backend.services.views.graph_index import GraphIndex
+from segb_server.backend.services.views.keeper import KeptView
+from segb_server.backend.services.views.kept_queries.projection import KeptQueries
+from segb_server.backend.services.views.kept_queries.rows import KeptRows
+from segb_server.backend.services.views.pace import ViewsPace
+from segb_server.backend.services.views.seen_terms import SEEN_TERMS_FILE
+from segb_server.backend.services.views.shape_view import ShapeFindings
 from segb_server.backend.services.writing.write_path import Role, WritePath
 from segb_server.backend.state.opening import open_state
 from segb_server.backend.store.base import Store
@@ -51,6 +52,7 @@ REQUIRED_QUERIES = (
     "graph/resource-in",
     "graph/resource-out",
     ERASURE_RULE,
+    MENTIONS_RULE,
     STORY,
     WINDOW,
 )
@@ -211,7 +213,9 @@ def build_services(
     )
     view_files = [folder / name for name in VIEW_FILES] if folder else []
     places = forgetting(writes.journal, shared_context, queries, server_log, view_files)
-    erasure = ErasureService(store, catalog.get(ERASURE_RULE), writes, places)
+    erasure = ErasureService(
+        store, catalog.get(ERASURE_RULE), writes, places, mentions_rule=catalog.get(MENTIONS_RULE)
+    )
     return Services(
         settings=settings,
         store=store,

@@ -14,9 +14,9 @@ from segb_server.backend.api.app import create_app
 from segb_server.backend.config import PACKAGE_ROOT
 from segb_server.backend.services.errors import NotFound
 from segb_server.backend.services.explain.service import FOLLOWED_INCOMING, TOLD_LITERALS, ExplainService
-from segb_server.backend.services.graph.index import GraphIndex
 from segb_server.backend.services.graph.service import MAX_NODES, GraphRequest, GraphService
 from segb_server.backend.services.sparql.catalog import Catalog
+from segb_server.backend.services.views.graph_index import GraphIndex
 from segb_server.backend.store.base import Store
 from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.api.test_ingest_client import FIXTURE_FILES

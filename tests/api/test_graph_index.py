@@ -19,18 +19,18 @@ from pyoxigraph import Literal, NamedNode, Quad
 from segb_server.backend.api.app import create_app
 from segb_server.backend.config import PACKAGE_ROOT, Settings
 from segb_server.backend.services.container import GRAPH_FILE
-from segb_server.backend.services.graph import index as graph_index
-from segb_server.backend.services.graph.index import (
+from segb_server.backend.services.graph.service import GraphService
+from segb_server.backend.services.sparql.catalog import Catalog
+from segb_server.backend.services.views import graph_index
+from segb_server.backend.services.views.delta import Delta
+from segb_server.backend.services.views.graph_index import (
     FIRST_VIEW,
     INDEX_VERSION,
     RDF_TYPE,
     GraphIndex,
     GraphRequest,
 )
-from segb_server.backend.services.graph.service import GraphService
-from segb_server.backend.services.sparql.catalog import Catalog
-from segb_server.backend.services.upkeep.delta import Delta
-from segb_server.backend.services.upkeep.keeper import ViewKeeper
+from segb_server.backend.services.views.keeper import ViewKeeper
 from segb_server.backend.services.writing.journal import Journal
 from segb_server.backend.state.sqlite import SqliteDatabase
 from segb_server.backend.store.base import Store

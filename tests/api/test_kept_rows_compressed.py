@@ -15,9 +15,9 @@ import httpx
 import pytest
 
 from segb_server.backend.api.app import create_app
-from segb_server.backend.services.upkeep.kept_queries.facets import FACETS_PREFIX
-from segb_server.backend.services.upkeep.kept_queries.key_namespaces import KEY_NAMESPACES
-from segb_server.backend.services.upkeep.kept_queries.row_codec import DICTIONARIES, SAMPLE_ROWS, RowCodec
+from segb_server.backend.services.views.kept_queries.facets import FACETS_PREFIX
+from segb_server.backend.services.views.kept_queries.key_namespaces import KEY_NAMESPACES
+from segb_server.backend.services.views.kept_queries.row_codec import DICTIONARIES, SAMPLE_ROWS, RowCodec
 from segb_server.examples.receptionist import log_visit, receptionist
 from tests.conftest import make_settings
 from tests.support.in_process import InProcess

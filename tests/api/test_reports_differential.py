@@ -174,7 +174,7 @@ def _order_of(text: str) -> list[str]:
 @pytest.mark.slow  # three servers in turn, every report compared after each post of the last
 def test_reports_kept_again_after_posts_taken_without_views_equal_their_full_evaluation(tmp_path: Path) -> None:
     """Posts a server took with its views off are in the store, not in the registry of the IRIs the store holds
-    (`upkeep/seen_terms.py`): when the views are kept again, the registry catches up from the journal before any
+    (`views/seen_terms.py`): when the views are kept again, the registry catches up from the journal before any
     later post's joins are followed among its own triples, so a late link to a resource of those posts reaches
     the store's triples about it."""
     store = OxigraphStore("http://amor-segb/events", tmp_path / "oxigraph")

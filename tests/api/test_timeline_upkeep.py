@@ -15,8 +15,8 @@ from pyoxigraph import Store as OxStore
 from segb_server.backend.config import PACKAGE_ROOT
 from segb_server.backend.services.sparql.catalog import Catalog
 from segb_server.backend.services.timeline.events import moment
-from segb_server.backend.services.upkeep.kept_queries.plan import declared_key
 from segb_server.backend.services.values import json_value
+from segb_server.backend.services.views.kept_queries.plan import declared_key
 from tests.api.test_reports_differential import bound_text
 from tests.support.histories import EX, HUMANS, ROBOTS, History, send
 from tests.support.settle import settle

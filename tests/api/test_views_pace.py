@@ -19,7 +19,7 @@ import httpx
 import pytest
 
 from segb_server.backend.api.app import create_app
-from segb_server.backend.services.writing.views_pace import ViewsPace
+from segb_server.backend.services.views.pace import ViewsPace
 from tests.conftest import make_settings
 from tests.support.live_server import LiveServer
 from tests.support.settle import kept_rows, settle

@@ -11,7 +11,7 @@ from pathlib import Path
 import httpx
 import pytest
 
-from segb_server.backend.views_process import STOP_SECONDS
+from segb_server.backend.services.views.process import STOP_SECONDS
 from tests.cli.test_cli import SEGB, clean_env, wait_for
 from tests.cli.test_views_process import alive, eventually, views_pid
 from tests.support.net import free_port

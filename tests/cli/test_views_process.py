@@ -18,7 +18,7 @@ import httpx
 import pytest
 from semantic_log_generator import SEGBPublisher
 
-from segb_server.backend.views_process import NICENESS, STATUS_FILE
+from segb_server.backend.services.views.process import NICENESS, STATUS_FILE
 from segb_server.examples.receptionist import log_visit, receptionist
 from tests.cli.test_cli import SEGB, clean_env, wait_for
 from tests.support.net import free_port

@@ -18,7 +18,7 @@ import httpx
 import pytest
 
 from segb_server.backend.api.app import create_app
-from tests.cli.test_cli import SEGB, clean_env, wait_for
+from tests.cli.test_cli import SEGB, clean_env
 from tests.conftest import make_settings, virtuoso_store
 from tests.support.graphs import value_triples
 from tests.support.live_server import LiveServer
@@ -92,13 +92,26 @@ class Server:
         self.process: subprocess.Popen[bytes] | None = None
 
     def start(self) -> None:
-        self.process = subprocess.Popen(
-            [*SEGB, "serve", "--only", "api", "--data-dir", str(self.data_dir), "--api-port", str(self.port)],
-            env=clean_env({"STORE": "oxigraph"}),
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL,
-        )
-        wait_for(f"{self.url}/healthz/live", timeout=60)
+        self.log = self.data_dir.with_name("server.log")
+        with self.log.open("ab") as log:
+            self.process = subprocess.Popen(
+                [*SEGB, "serve", "--only", "api", "--data-dir", str(self.data_dir), "--api-port", str(self.port)],
+                env=clean_env({"STORE": "oxigraph"}),
+                stdout=log,
+                stderr=subprocess.STDOUT,
+            )
+        # A restart after a kill recovers the journal's tail first; on a loaded two-core machine that and the
+        # catalog's parse can take a minute, so the wait is generous and a server that died says why.
+        deadline = time.monotonic() + 180
+        while True:
+            try:
+                httpx.get(f"{self.url}/healthz/live", timeout=2)
+                return
+            except httpx.HTTPError:
+                tail = self.log.read_text(errors="replace")[-3000:]
+                assert self.process.poll() is None, f"the server exited ({self.process.returncode}):\n{tail}"
+                assert time.monotonic() < deadline, f"the server did not come up within 180 s:\n{tail}"
+                time.sleep(0.2)
 
     def kill(self) -> None:
         assert self.process is not None

@@ -14,9 +14,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from pyoxigraph import Quad, RdfFormat, Store, parse
 
-from segb_server.backend.services.upkeep.delta import Delta
-from segb_server.backend.services.upkeep.kept_queries.delta_joins import Alias, DeltaJoin, Step
-from segb_server.backend.services.upkeep.kept_queries.plan import Pattern
+from segb_server.backend.services.views.delta import Delta
+from segb_server.backend.services.views.kept_queries.delta_joins import Alias, DeltaJoin, Step
+from segb_server.backend.services.views.kept_queries.plan import Pattern
 from segb_server.backend.store.terms import term_text
 
 EX = "https://example.org/"

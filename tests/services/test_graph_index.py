@@ -10,10 +10,10 @@ from collections.abc import Iterator
 import pytest
 from pyoxigraph import Literal, NamedNode, Quad
 
-from segb_server.backend.services.graph import index as graph_index
 from segb_server.backend.services.graph.candidates import CandidateQuery
-from segb_server.backend.services.graph.index import GraphIndex, GraphRequest
-from segb_server.backend.services.upkeep.delta import Delta
+from segb_server.backend.services.views import graph_index
+from segb_server.backend.services.views.delta import Delta
+from segb_server.backend.services.views.graph_index import GraphIndex, GraphRequest
 from segb_server.backend.store.oxigraph import OxigraphStore
 from segb_server.backend.vocabulary import PREFIXES
 

@@ -10,8 +10,8 @@ from pathlib import Path
 from pyoxigraph import DefaultGraph, NamedNode, Quad
 
 from segb_server.backend.services.ingest.service import post_entry
-from segb_server.backend.services.upkeep.delta import Delta
-from segb_server.backend.services.upkeep.keeper import (
+from segb_server.backend.services.views.delta import Delta
+from segb_server.backend.services.views.keeper import (
     MAX_REST_SECONDS,
     RETRY_BUILD_SECONDS,
     START_WITHIN_SECONDS,

@@ -10,9 +10,9 @@ from pyoxigraph import NamedNode, Quad
 
 from segb_server.backend.config import PACKAGE_ROOT
 from segb_server.backend.services.sparql.catalog import Catalog, CatalogQuery
-from segb_server.backend.services.upkeep.delta import Delta
-from segb_server.backend.services.upkeep.kept_queries.keys import KeyFinder
-from segb_server.backend.services.upkeep.kept_queries.plan import ReportPlan, plan_report
+from segb_server.backend.services.views.delta import Delta
+from segb_server.backend.services.views.kept_queries.keys import KeyFinder
+from segb_server.backend.services.views.kept_queries.plan import ReportPlan, plan_report
 from segb_server.backend.store.oxigraph import OxigraphStore
 from segb_server.backend.vocabulary import PREFIXES
 

@@ -11,9 +11,9 @@ from pathlib import Path
 
 import pytest
 
-from segb_server.backend.services.upkeep.database import ViewDatabase
-from segb_server.backend.services.upkeep.kept_queries import row_codec
-from segb_server.backend.services.upkeep.kept_queries.row_codec import SAMPLE_ROWS, RowCodec, schema
+from segb_server.backend.services.views.database import ViewDatabase
+from segb_server.backend.services.views.kept_queries import row_codec
+from segb_server.backend.services.views.kept_queries.row_codec import SAMPLE_ROWS, RowCodec, schema
 
 TABLE = "report_example"
 CREATE = f"CREATE TABLE IF NOT EXISTS {TABLE} (unit INTEGER, row)"

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from pyoxigraph import Quad, RdfFormat, parse
 
-from segb_server.backend.services.upkeep.seen_terms import SeenTerms
+from segb_server.backend.services.views.seen_terms import SeenTerms
 from segb_server.backend.store.oxigraph import OxigraphStore
 
 EX = "https://example.org/"

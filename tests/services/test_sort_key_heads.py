@@ -8,8 +8,8 @@ import random
 
 from pyoxigraph import BlankNode, Literal, NamedNode
 
-from segb_server.backend.services.upkeep.kept_queries.encoding import DATE_TIME, SEPARATOR, sort_key
-from segb_server.backend.services.upkeep.kept_queries.rows import head_of
+from segb_server.backend.services.views.kept_queries.encoding import DATE_TIME, SEPARATOR, sort_key
+from segb_server.backend.services.views.kept_queries.rows import head_of
 from segb_server.backend.store.base import Term
 
 IRIS = ["https://e.org/a", "https://e.org/ab", "https://e.org/b", "https://e.org/robot/ari", "https://e.org/robot"]

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from segb_server.backend.services.upkeep.database import ViewDatabase
+from segb_server.backend.services.views.database import ViewDatabase
 from segb_server.backend.state.sqlite import SqliteDatabase
 
 SCHEMA = ["CREATE TABLE IF NOT EXISTS facts (value INTEGER)"]

@@ -1,4 +1,4 @@
-"""A view's table of terms (`upkeep/terms.py`): texts as small numbers, found by a hash and told apart by the
+"""A view's table of terms (`views/terms.py`): texts as small numbers, found by a hash and told apart by the
 text itself, or (the kept rows' table) by a 128-bit digest that keeps no text at all."""
 
 from __future__ import annotations
@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from segb_server.backend.services.upkeep import terms
-from segb_server.backend.services.upkeep.kept_queries.rows import TERMS, KeptRows
-from segb_server.backend.services.upkeep.terms import TermIds, iri_digest, iri_hash
+from segb_server.backend.services.views import terms
+from segb_server.backend.services.views.kept_queries.rows import TERMS, KeptRows
+from segb_server.backend.services.views.terms import TermIds, iri_digest, iri_hash
 
 IRIS = [f"https://example.org/robots/ari/visitor_{index}" for index in range(1_000)]
 

@@ -10,7 +10,7 @@ from segb_server.backend.config import PACKAGE_ROOT
 from segb_server.backend.services.sparql.catalog import Catalog
 from segb_server.backend.services.timeline.kinds import FINDING, KINDS, query_name
 from segb_server.backend.services.timeline.sentences import TELLERS
-from segb_server.backend.services.upkeep.kept_queries.plan import declared_key, plan_report
+from segb_server.backend.services.views.kept_queries.plan import declared_key, plan_report
 
 CATALOG = Catalog(PACKAGE_ROOT / "sparql")
 QUERIES = CATALOG.under("timeline")

@@ -22,15 +22,15 @@ from rdflib import Graph
 
 from segb_server.backend.config import PACKAGE_ROOT
 from segb_server.backend.services.explain.service import TOLD_LITERALS
-from segb_server.backend.services.graph.index import GraphIndex
 from segb_server.backend.services.rules.catalog import RuleCatalog
-from segb_server.backend.services.rules.shape_view import ShapeFindings
 from segb_server.backend.services.rules.shapes import ShapeRule
 from segb_server.backend.services.sparql.catalog import Catalog
-from segb_server.backend.services.upkeep.delta import Delta
-from segb_server.backend.services.upkeep.kept_queries.projection import KeptQueries
-from segb_server.backend.services.upkeep.kept_queries.rows import KeptRows
-from segb_server.backend.services.upkeep.seen_terms import SeenTerms
+from segb_server.backend.services.views.delta import Delta
+from segb_server.backend.services.views.graph_index import GraphIndex
+from segb_server.backend.services.views.kept_queries.projection import KeptQueries
+from segb_server.backend.services.views.kept_queries.rows import KeptRows
+from segb_server.backend.services.views.seen_terms import SeenTerms
+from segb_server.backend.services.views.shape_view import ShapeFindings
 from segb_server.backend.store.base import QueryResult
 from segb_server.backend.store.oxigraph import OxigraphStore
 from segb_server.examples.emotion_mirror.mission import EmotionMirrorMission, RobotConfig

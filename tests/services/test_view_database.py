@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from segb_server.backend.services.upkeep.database import ViewDatabase
+from segb_server.backend.services.views.database import ViewDatabase
 
 SCHEMA = ["CREATE TABLE IF NOT EXISTS facts (value INTEGER)"]
 

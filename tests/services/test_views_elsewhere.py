@@ -17,10 +17,10 @@ from segb_server.backend.config import Settings
 from segb_server.backend.services.container import REQUIRED_QUERIES, KeptViews, Services, build_services, build_views
 from segb_server.backend.services.ingest.payloads import RdfPayload
 from segb_server.backend.services.sparql.catalog import Catalog
+from segb_server.backend.services.views.channel import ChannelStore, StoreChannel
+from segb_server.backend.services.views.process import ViewsStatus
 from segb_server.backend.services.writing.write_path import Role, WritePath
-from segb_server.backend.store.channel import ChannelStore, StoreChannel
 from segb_server.backend.store.oxigraph import OxigraphStore
-from segb_server.backend.views_process import ViewsStatus
 from segb_server.examples.receptionist import log_visit, receptionist
 from tests.conftest import make_settings
 from tests.support.robot_posts import RecordingGraph

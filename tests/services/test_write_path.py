@@ -10,7 +10,7 @@ import pytest
 from pyoxigraph import Literal, NamedNode, Quad
 
 from segb_server.backend.services.ingest.service import post_entry
-from segb_server.backend.services.upkeep.delta import Delta
+from segb_server.backend.services.views.delta import Delta
 from segb_server.backend.services.writing.write_path import Lag, WritePath
 from segb_server.backend.store.oxigraph import OxigraphStore
 from tests.conftest import make_settings

@@ -16,8 +16,8 @@ from pathlib import Path
 import pytest
 from pyoxigraph import Literal, NamedNode, Quad, QueryBoolean
 
+from segb_server.backend.services.views.channel import ChannelStore, StoreChannel
 from segb_server.backend.store.base import StoreError, StoreRejectedQuery, StoreUnavailable, select
-from segb_server.backend.store.channel import ChannelStore, StoreChannel
 from segb_server.backend.store.oxigraph import OxigraphStore
 
 EX = "http://example.org/"

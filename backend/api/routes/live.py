@@ -18,8 +18,8 @@ from fastapi.responses import StreamingResponse
 
 from segb_server.backend.api.deps import Auditor, ServicesDep
 from segb_server.backend.services.reports.service import FOLDER
-from segb_server.backend.services.upkeep.kept_queries.rows import KeptRows
-from segb_server.backend.services.upkeep.signal import ChangeSignal
+from segb_server.backend.services.views.kept_queries.rows import KeptRows
+from segb_server.backend.services.views.signal import ChangeSignal
 
 router = APIRouter(tags=["reports"])
 

@@ -19,8 +19,8 @@ from datetime import UTC, datetime, timedelta
 from pyoxigraph import Literal, NamedNode, Quad
 
 from segb_server.backend.reading import NAME_PREDICATES, TIME_PREDICATES, display_name, own_time
-from segb_server.backend.services.upkeep.terms import CHUNK, TermIds, iri_hash, texts_of
 from segb_server.backend.services.values import iso_time
+from segb_server.backend.services.views.terms import CHUNK, TermIds, iri_hash, texts_of
 from segb_server.backend.vocabulary import KINDS, PREFIXES, Kind, kind_of
 
 RDF_TYPE = PREFIXES["rdf"] + "type"
@@ -38,7 +38,7 @@ WAS_GENERATED_BY = PREFIXES["prov"] + "wasGeneratedBy"
 PRODUCED = PREFIXES["segb"] + "producedEntityResult"
 HAS_EMOTION = PREFIXES["onyx"] + "hasEmotion"
 PROV = PREFIXES["prov"]
-TERMS = "graph_terms"  # the index's table of IRIs (upkeep/terms.py)
+TERMS = "graph_terms"  # the index's table of IRIs (views/terms.py)
 DRAWN_LITERALS = frozenset([*LABELS, TEXT, DESCRIPTION, *TIMES, INTENSITY])
 MAX_LABEL = 60
 UNTIMED = 1 << 62  # the instant of a node without a time: after every real one

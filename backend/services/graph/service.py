@@ -15,7 +15,9 @@ from pyoxigraph import Literal, NamedNode, Quad
 
 from segb_server.backend.reading import own_time
 from segb_server.backend.services.errors import InvalidParameter, ViewNotReady
-from segb_server.backend.services.graph.index import (
+from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, Catalog, paged
+from segb_server.backend.services.values import json_value
+from segb_server.backend.services.views.graph_index import (
     CATEGORY,
     GENERATED_AT,
     RDF_TYPE,
@@ -24,8 +26,6 @@ from segb_server.backend.services.graph.index import (
     display_label,
     local_name,
 )
-from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, Catalog, paged
-from segb_server.backend.services.values import json_value
 from segb_server.backend.store.base import Store, Term, select
 from segb_server.backend.store.terms import bind_rows
 from segb_server.backend.vocabulary import KINDS, compact, kind_of

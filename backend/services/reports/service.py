@@ -12,9 +12,9 @@ from segb_server.backend.services.errors import Conflict, InvalidParameter, NotF
 from segb_server.backend.services.ops.result_cache import DataVersion, ResultCache
 from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, Catalog, CatalogQuery
 from segb_server.backend.services.sparql.paging import evaluated_page
-from segb_server.backend.services.upkeep.kept_queries.projection import KeptQueries
-from segb_server.backend.services.upkeep.kept_queries.rows import KeptRows
 from segb_server.backend.services.values import JsonValue, json_value
+from segb_server.backend.services.views.kept_queries.projection import KeptQueries
+from segb_server.backend.services.views.kept_queries.rows import KeptRows
 from segb_server.backend.services.writing.write_path import Lag
 from segb_server.backend.store.base import Bindings, Store
 
@@ -108,7 +108,7 @@ def _csv_cell(value: JsonValue) -> str:
 
 
 class ReportService:
-    """Reports served from their rows, kept current as the graph changes (services/upkeep/kept_queries), or,
+    """Reports served from their rows, kept current as the graph changes (services/views/kept_queries), or,
     while those are being built or for a report they cannot follow, by evaluating the report's query."""
 
     def __init__(

@@ -21,13 +21,13 @@ from pyoxigraph import NamedNode
 from segb_server.backend.services.errors import Conflict, InvalidParameter
 from segb_server.backend.services.rules.catalog import FOLDER, SEVERITIES, Rule, RuleCatalog
 from segb_server.backend.services.rules.findings import Finding, finding, order_key
-from segb_server.backend.services.rules.shape_view import ShapeFindings, check_shapes
 from segb_server.backend.services.rules.shapes import ShapeRule
 from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, Parameter, check_window, to_term
-from segb_server.backend.services.upkeep.kept_queries.encoding import instant, numeric_value
-from segb_server.backend.services.upkeep.kept_queries.projection import KeptQueries
-from segb_server.backend.services.upkeep.signal import ChangeSignal
 from segb_server.backend.services.values import JsonValue, json_value
+from segb_server.backend.services.views.kept_queries.encoding import instant, numeric_value
+from segb_server.backend.services.views.kept_queries.projection import KeptQueries
+from segb_server.backend.services.views.shape_view import ShapeFindings, check_shapes
+from segb_server.backend.services.views.signal import ChangeSignal
 from segb_server.backend.store.base import Store, Term, select
 from segb_server.backend.store.terms import bind_values, term_text
 

@@ -27,7 +27,7 @@ from segb_server.backend.reading import TIME_PREDICATES
 from segb_server.backend.services.rules.catalog import Rule
 from segb_server.backend.services.rules.shape_check import PropertyCheck, as_rdflib, check_node, compile_shape
 from segb_server.backend.services.sparql.parser import exclusive
-from segb_server.backend.services.upkeep.delta import Delta
+from segb_server.backend.services.views.delta import Delta
 from segb_server.backend.store.base import Store, select
 from segb_server.backend.store.sparql_text import top_level_where, top_level_where_end
 from segb_server.backend.store.terms import bind_rows, term_text

@@ -14,10 +14,10 @@ from dataclasses import dataclass, field
 from segb_server.backend.services.rules.findings import Finding
 from segb_server.backend.services.rules.service import FILTERS, FindingsService, Selection
 from segb_server.backend.services.timeline.events import TimelineEvent, moment
-from segb_server.backend.services.timeline.kept_reader import Position
 from segb_server.backend.services.timeline.kinds import FINDING
 from segb_server.backend.services.timeline.sentences import Told
 from segb_server.backend.services.timeline.sources import Window
+from segb_server.backend.services.views.timeline_rows import Position
 
 SEVERITY_WORDS = {"violation": "Violation", "warning": "Warning", "info": "Note"}
 

@@ -23,10 +23,10 @@ from segb_server.backend.services.csv_cells import spreadsheet_safe
 from segb_server.backend.services.errors import Conflict, InvalidParameter
 from segb_server.backend.services.sparql.catalog import Parameter, check_window, to_term
 from segb_server.backend.services.timeline.events import COLUMNS, TimelineEvent
-from segb_server.backend.services.timeline.kept_reader import Moved, Position
 from segb_server.backend.services.timeline.kinds import KINDS
 from segb_server.backend.services.timeline.sources import FIRST_CHUNK, Reader, Source, Window
 from segb_server.backend.services.values import JsonValue
+from segb_server.backend.services.views.timeline_rows import Moved, Position
 
 DEFAULT_LIMIT = 1000
 MAX_LIMIT = 10_000

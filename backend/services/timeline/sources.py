@@ -17,9 +17,9 @@ from pyoxigraph import NamedNode
 
 from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, CatalogQuery
 from segb_server.backend.services.timeline.events import Row, TimelineEvent, grouped, json_rows, moment
-from segb_server.backend.services.timeline.kept_reader import MAX_CHUNK, KeptReader, Position
-from segb_server.backend.services.upkeep.kept_queries.plan import declared_key, plan_report
-from segb_server.backend.services.upkeep.kept_queries.projection import KeptQueries
+from segb_server.backend.services.views.kept_queries.plan import declared_key, plan_report
+from segb_server.backend.services.views.kept_queries.projection import KeptQueries
+from segb_server.backend.services.views.timeline_rows import MAX_CHUNK, KeptReader, Position
 from segb_server.backend.store.base import Bindings, Store, select
 from segb_server.backend.store.terms import bind_rows, bind_values
 

@@ -6,7 +6,7 @@ With several API processes, one among all that share the journal applies (`apply
 or an advisory lock in PostgreSQL when the state is there), and one per data directory keeps the views
 (`views_leadership`); the others follow what the leaders did. A process's `Role` says which of these it may
 take on: both (one process, or API workers that keep the views themselves), or one side each when `segb serve`
-keeps the views in a process of their own (`backend/views_process.py`). What the rest of the server needs of
+keeps the views in a process of their own (`backend/services/views/process.py`). What the rest of the server needs of
 all this is here: wait until a post is applied or viewed, how far behind each stage is, and what is on its way.
 """
 
@@ -28,8 +28,8 @@ from segb_server.backend.services.ops.leadership import (
     Leadership,
     SharedLeadership,
 )
-from segb_server.backend.services.upkeep.keeper import REST_RATIO, KeptView, ViewKeeper
-from segb_server.backend.services.upkeep.seen_terms import SEEN_TERMS_FILE, SeenTerms
+from segb_server.backend.services.views.keeper import REST_RATIO, KeptView, ViewKeeper
+from segb_server.backend.services.views.seen_terms import SEEN_TERMS_FILE, SeenTerms
 from segb_server.backend.services.writing.applier import Applied, Applier
 from segb_server.backend.services.writing.journal import Journal
 from segb_server.backend.services.writing.journal_file import journal_path
@@ -47,7 +47,7 @@ class Role(Enum):
 
 
 class ViewsElsewhere(Protocol):
-    """How the views' own process is, as an API process learns it (`backend/views_process.py`)."""
+    """How the views' own process is, as an API process learns it (`backend/services/views/process.py`)."""
 
     def down(self) -> str | None:
         """Why that process is not keeping the views just now; None while it runs."""

@@ -12,7 +12,7 @@ A facet filter's pairs (`facets.py`) are kept in a table named by the facet's pa
 of the database whose facet has the same ones (the timeline's kinds of activity).
 
 Compact on disk (a million triples of one robot: its rows were as big as the store itself): a row's key (unit),
-the IRIs its filters compare and its facets are numbers from the database's table of terms (`upkeep/terms.py`);
+the IRIs its filters compare and its facets are numbers from the database's table of terms (`views/terms.py`);
 a row is stored as the JSON list of its values, compressed against a dictionary of its table's first rows
 (`row_codec.py`: 6 to 8 times smaller); a sort key writes its IRIs without the table's namespaces and its
 times as 10 characters (`key_namespaces.py`, `encoding.py`: a conversation's key 75 bytes, was 200); a filter
@@ -38,22 +38,22 @@ from pyoxigraph import NamedNode
 
 from segb_server.backend.services.errors import InvalidParameter
 from segb_server.backend.services.sparql.catalog import Parameter
-from segb_server.backend.services.upkeep import terms
-from segb_server.backend.services.upkeep.database import ViewDatabase
-from segb_server.backend.services.upkeep.kept_queries import key_namespaces, row_codec
-from segb_server.backend.services.upkeep.kept_queries.encoding import (
+from segb_server.backend.services.values import JsonValue, iso_time, json_value
+from segb_server.backend.services.views import terms
+from segb_server.backend.services.views.database import ViewDatabase
+from segb_server.backend.services.views.kept_queries import key_namespaces, row_codec
+from segb_server.backend.services.views.kept_queries.encoding import (
     SEPARATOR,
     filter_value,
     instant_of_part,
     sort_key,
 )
-from segb_server.backend.services.upkeep.kept_queries.facets import FACETS_PREFIX
-from segb_server.backend.services.upkeep.kept_queries.key_namespaces import KEY_NAMESPACES, KeyNamespaces, Namespaces
-from segb_server.backend.services.upkeep.kept_queries.plan import ReportPlan
-from segb_server.backend.services.upkeep.kept_queries.row_codec import DICTIONARIES, RowCodec
-from segb_server.backend.services.upkeep.signal import ChangeSignal
-from segb_server.backend.services.upkeep.terms import TermIds
-from segb_server.backend.services.values import JsonValue, iso_time, json_value
+from segb_server.backend.services.views.kept_queries.facets import FACETS_PREFIX
+from segb_server.backend.services.views.kept_queries.key_namespaces import KEY_NAMESPACES, KeyNamespaces, Namespaces
+from segb_server.backend.services.views.kept_queries.plan import ReportPlan
+from segb_server.backend.services.views.kept_queries.row_codec import DICTIONARIES, RowCodec
+from segb_server.backend.services.views.signal import ChangeSignal
+from segb_server.backend.services.views.terms import TermIds
 from segb_server.backend.store.base import Term
 from segb_server.backend.store.terms import term_text
 
@@ -281,7 +281,7 @@ def _named(row: Row, variable: str) -> bool:
     return isinstance(row.get(variable), NamedNode)
 
 
-TERMS = "report_term_numbers"  # units and the IRIs filters compare, as numbers (upkeep/terms.py, by digest)
+TERMS = "report_term_numbers"  # units and the IRIs filters compare, as numbers (views/terms.py, by digest)
 # the database's own, beside each report's tables
 OWN_TABLES = ("report_state", "report_changes", *terms.tables(TERMS, texts=False), DICTIONARIES, KEY_NAMESPACES)
 

@@ -9,7 +9,7 @@ from decimal import Decimal, InvalidOperation
 
 from pyoxigraph import BlankNode, Literal, NamedNode
 
-from segb_server.backend.services.upkeep.kept_queries.key_namespaces import Namespaces, number_of, order_digits
+from segb_server.backend.services.views.kept_queries.key_namespaces import Namespaces, number_of, order_digits
 from segb_server.backend.store.base import Term
 from segb_server.backend.store.terms import term_text
 

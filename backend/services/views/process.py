@@ -37,7 +37,7 @@ from typing import Any
 
 from segb_server.backend.collector import tune_collector
 from segb_server.backend.config import Settings
-from segb_server.backend.store.channel import ChannelAddress
+from segb_server.backend.services.views.channel import ChannelAddress
 
 logger = logging.getLogger("segb.views")
 
@@ -222,9 +222,9 @@ def keep_views(settings: Settings, channel: ChannelAddress | None) -> None:
     from segb_server.backend.services.container import REQUIRED_QUERIES, build_views
     from segb_server.backend.services.ops.server_log import ServerLog
     from segb_server.backend.services.sparql.catalog import Catalog
+    from segb_server.backend.services.views.channel import ChannelStore
     from segb_server.backend.services.writing.write_path import Role, WritePath
     from segb_server.backend.serving import configure_logging
-    from segb_server.backend.store.channel import ChannelStore
     from segb_server.backend.store.factory import open_store
 
     os.nice(NICENESS)

@@ -1,7 +1,7 @@
 """The embedded store read by another process of the same server, over a local socket.
 
 RocksDB lets one process open the embedded store. `segb serve` keeps the views in a process of their own
-(`backend/views_process.py`), so the requests' interpreter never waits for the views' Python; that process
+(`backend/services/views/process.py`), so the requests' interpreter never waits for the views' Python; that process
 reads the store through the API process that opened it. `StoreChannel` serves the store's reads there: a Unix
 socket, each connection authenticated with a random key both processes hold (multiprocessing.connection's HMAC
 handshake), one thread per connection. On Linux the socket has an abstract name: no file, so a server killed

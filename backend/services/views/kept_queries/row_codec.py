@@ -25,7 +25,7 @@ import zlib
 from collections import OrderedDict
 from collections.abc import Collection, Sequence
 
-from segb_server.backend.services.upkeep.kept_queries import per_table
+from segb_server.backend.services.views.kept_queries import per_table
 
 DICTIONARIES = "report_dictionaries"
 SAMPLE_ROWS = 64  # rows a table holds before its dictionary is made from them

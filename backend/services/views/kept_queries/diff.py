@@ -9,8 +9,8 @@ from dataclasses import dataclass
 
 from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, CatalogQuery
 from segb_server.backend.services.sparql.paging import evaluated_page
-from segb_server.backend.services.upkeep.kept_queries.projection import KeptQueries
 from segb_server.backend.services.values import JsonValue, json_value
+from segb_server.backend.services.views.kept_queries.projection import KeptQueries
 from segb_server.backend.store.base import Store
 
 PAGE = 10_000

@@ -31,11 +31,11 @@ from segb_server.backend.services.rules.shapes import (
     robots_of_generating,
     statements,
 )
-from segb_server.backend.services.upkeep.database import ViewDatabase
-from segb_server.backend.services.upkeep.delta import Delta
-from segb_server.backend.services.upkeep.kept_queries.encoding import instant, sort_key
-from segb_server.backend.services.upkeep.signal import ChangeSignal
 from segb_server.backend.services.values import JsonValue, json_value
+from segb_server.backend.services.views.database import ViewDatabase
+from segb_server.backend.services.views.delta import Delta
+from segb_server.backend.services.views.kept_queries.encoding import instant, sort_key
+from segb_server.backend.services.views.signal import ChangeSignal
 from segb_server.backend.store.base import Store, Term
 
 logger = logging.getLogger("segb.rules")

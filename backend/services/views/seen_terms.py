@@ -23,8 +23,8 @@ from pathlib import Path
 
 from pyoxigraph import NamedNode, Quad
 
-from segb_server.backend.services.upkeep.database import ViewDatabase
-from segb_server.backend.services.upkeep.terms import CHUNK, iri_hash
+from segb_server.backend.services.views.database import ViewDatabase
+from segb_server.backend.services.views.terms import CHUNK, iri_hash
 from segb_server.backend.store.base import Store
 from segb_server.backend.store.terms import term_text
 

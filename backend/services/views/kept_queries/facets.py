@@ -8,15 +8,15 @@ import hashlib
 import json
 
 from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX
-from segb_server.backend.services.upkeep.delta import Delta, Fact
-from segb_server.backend.services.upkeep.kept_queries.delta_joins import DeltaJoin
-from segb_server.backend.services.upkeep.kept_queries.keys import (
+from segb_server.backend.services.views.delta import Delta, Fact
+from segb_server.backend.services.views.kept_queries.delta_joins import DeltaJoin
+from segb_server.backend.services.views.kept_queries.keys import (
     BRANCHES_PER_QUERY,
     VALUES_PER_QUERY,
     PatternMatch,
     narrowing,
 )
-from segb_server.backend.services.upkeep.kept_queries.plan import FacetFilter, Pattern, ReportPlan
+from segb_server.backend.services.views.kept_queries.plan import FacetFilter, Pattern, ReportPlan
 from segb_server.backend.store.base import Store, select
 from segb_server.backend.store.terms import term_text
 

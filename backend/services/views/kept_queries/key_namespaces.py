@@ -30,7 +30,7 @@ from collections import Counter
 from collections.abc import Collection, Iterable
 from dataclasses import dataclass
 
-from segb_server.backend.services.upkeep.kept_queries import per_table
+from segb_server.backend.services.views.kept_queries import per_table
 
 KEY_NAMESPACES = "report_key_namespaces"
 ORDER_DIGITS = "-0123456789ABCDEFGHIJKLMNOPQRSTUVWXYZ_abcdefghijklmnopqrstuvwxyz"  # 64 digits, in byte order

@@ -3,7 +3,7 @@
 A view asks the store which of its keys (or facet pairs) a batch's new triples reach: a join from each new
 triple through the query's patterns. Most of those joins start from resources the batch itself introduced (a
 robot's new activity, the message it produced, the visitor it met): every triple the store holds about such a
-`fresh` term is one of the batch's own (`upkeep/seen_terms.py`), so a step from it can be taken among the
+`fresh` term is one of the batch's own (`views/seen_terms.py`), so a step from it can be taken among the
 batch's triples, with no store lookup. A join is followed here only while every step goes from a fresh term;
 the first step from any other term (the robot, a model, a class: a hub with years of history) gives up, and
 that join is asked of the store as before. The answers are the store's: the differential tests compare the
@@ -29,8 +29,8 @@ import threading
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
-from segb_server.backend.services.upkeep.delta import Delta, Fact
-from segb_server.backend.services.upkeep.kept_queries.plan import Pattern
+from segb_server.backend.services.views.delta import Delta, Fact
+from segb_server.backend.services.views.kept_queries.plan import Pattern
 
 
 @dataclass(frozen=True)

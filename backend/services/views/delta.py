@@ -5,7 +5,7 @@ patterns: the triples are grouped by predicate once per batch, and the first ask
 facts (the terms' N-Triples texts) and groups them by object, instead of every view scanning every triple for
 every pattern.
 
-`fresh` holds the batch's terms the store held no triple about before the batch (`upkeep/seen_terms.py`): every
+`fresh` holds the batch's terms the store held no triple about before the batch (`views/seen_terms.py`): every
 triple the store holds about such a term (of this batch or earlier) is among the new triples, so a view may
 follow a join from it here (`kept_queries/delta_joins.py`) instead of asking the store.
 

@@ -38,8 +38,8 @@ from pyoxigraph import Quad
 
 from segb_server.backend.services.errors import OUTAGES
 from segb_server.backend.services.ops.leadership import Lead, Leadership
-from segb_server.backend.services.upkeep.delta import Delta
-from segb_server.backend.services.upkeep.seen_terms import SeenTerms
+from segb_server.backend.services.views.delta import Delta
+from segb_server.backend.services.views.seen_terms import SeenTerms
 from segb_server.backend.services.writing.applier import Applied, Applier, applied_steps, quads_of
 from segb_server.backend.services.writing.cursor import Cursor
 from segb_server.backend.services.writing.journal import Journal

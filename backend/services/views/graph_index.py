@@ -1,6 +1,6 @@
 """The drawable graph kept as indexed rows, current with each applied journal step (a `KeptView`).
 
-The facts (links, types, the literals it keeps) are stored as they arrive, every IRI as a number (`upkeep/terms.py`);
+The facts (links, types, the literals it keeps) are stored as they arrive, every IRI as a number (`views/terms.py`);
 each node's derived row (kind, time, label) is computed again whenever a fact about it, or about an activity it
 borrows its time from, arrives (`facts.py`). `GET /graph` is then a few indexed SQL queries whatever the size of
 the log: the first view reads the first nodes of an index in drawing order, filters become conditions
@@ -38,10 +38,10 @@ from segb_server.backend.services.graph.facts import (
     typed_literal,
 )
 from segb_server.backend.services.graph.neighbourhoods import MAX_KEPT_REACH, KeptNeighbourhoods
-from segb_server.backend.services.upkeep import terms
-from segb_server.backend.services.upkeep.database import ViewDatabase
-from segb_server.backend.services.upkeep.delta import Delta
-from segb_server.backend.services.upkeep.signal import ChangeSignal
+from segb_server.backend.services.views import terms
+from segb_server.backend.services.views.database import ViewDatabase
+from segb_server.backend.services.views.delta import Delta
+from segb_server.backend.services.views.signal import ChangeSignal
 from segb_server.backend.store.base import Store, Term
 from segb_server.backend.vocabulary import KINDS, compact
 
@@ -86,7 +86,7 @@ SCHEMA = [
     "CREATE TABLE IF NOT EXISTS graph_state (id INTEGER PRIMARY KEY CHECK (id = 1), version TEXT, through INTEGER, "
     "nodes INTEGER NOT NULL DEFAULT 0, changed INTEGER NOT NULL DEFAULT 0, first_view INTEGER NOT NULL DEFAULT 0, "
     "changes_from INTEGER NOT NULL DEFAULT 0, literals INTEGER NOT NULL DEFAULT 0)",
-    # every IRI once: nodes, predicates, datatypes (upkeep/terms.py; classes are in the lists of types)
+    # every IRI once: nodes, predicates, datatypes (views/terms.py; classes are in the lists of types)
     *terms.schema(TERMS),
     "CREATE TABLE IF NOT EXISTS graph_changes (seq INTEGER NOT NULL, node INTEGER NOT NULL)",
     "CREATE INDEX IF NOT EXISTS graph_changes_by_seq ON graph_changes (seq)",

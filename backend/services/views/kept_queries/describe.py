@@ -7,10 +7,10 @@ from __future__ import annotations
 import re
 
 from segb_server.backend.services.sparql.catalog import CatalogQuery
-from segb_server.backend.services.upkeep.kept_queries.facets import facet_patterns
-from segb_server.backend.services.upkeep.kept_queries.keys import chains
-from segb_server.backend.services.upkeep.kept_queries.plan import Pattern, Unsupported, declared_key, plan_report
-from segb_server.backend.services.upkeep.kept_queries.rows import Layout
+from segb_server.backend.services.views.kept_queries.facets import facet_patterns
+from segb_server.backend.services.views.kept_queries.keys import chains
+from segb_server.backend.services.views.kept_queries.plan import Pattern, Unsupported, declared_key, plan_report
+from segb_server.backend.services.views.kept_queries.rows import Layout
 from segb_server.backend.vocabulary import compact
 
 
@@ -85,9 +85,9 @@ def describe_others() -> list[str]:
     return [
         "graph index: every link and the literals that name and place nodes, kept from each batch's triples (a node's "
         "kind, time and label computed again when a fact about it, or about the activity it borrows its time from, "
-        "arrives): backend/services/graph/index.py",
+        "arrives): backend/services/views/graph_index.py",
         "SHACL rules' findings (rules/*.ttl): the shapes checked again on the nodes a batch's triples touch: "
-        "backend/services/rules/shape_view.py",
+        "backend/services/views/shape_view.py",
     ]
 
 
