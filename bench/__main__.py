@@ -77,7 +77,7 @@ INTERACTIONS_PER_COPY = 100
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m bench", description=__doc__.split("\n\n")[0])
     parser.add_argument("--profile", choices=sorted(PROFILES), default="quick")
-    parser.add_argument("--output", type=Path, default=ROOT / "docs/performance.md")
+    parser.add_argument("--output", type=Path, default=Path(tempfile.gettempdir()) / "segb-bench.md")
     parser.add_argument("--no-virtuoso", action="store_true", help="only the embedded store")
     parser.add_argument("--code", default=code_version(), help="what code was measured, for the report's header")
     parser.add_argument("--save-figures", type=Path, help="also keep the measured figures in this file (pickle)")

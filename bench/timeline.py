@@ -57,7 +57,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m bench.timeline", description=__doc__.split("\n\n")[0])
     parser.add_argument("--size", type=int, default=1_000_000, help="triples in the store")
     parser.add_argument("--repeats", type=int, default=30, help="times each request is measured")
-    parser.add_argument("--output", type=Path, default=ROOT / "docs/performance.md")
+    parser.add_argument("--output", type=Path, default=Path(tempfile.gettempdir()) / "segb-bench.md")
     args = parser.parse_args(argv)
     started, load_at_start, code = time.perf_counter(), machine(), code_version()
     gc.disable()  # as the bench does: the client's collections would count in whichever request was in flight
