@@ -101,7 +101,7 @@ def _timed_round(robot: OneRobot, posts: int, settings: Settings, store_pid: int
         first = post_in_process(services, robot.first)
         assert services.writes.wait_viewed(first, 600), "the views were not built"
         keeper = services.writes.keeper
-        spent_before = keeper.view_times()
+        spent_before = keeper.progress.view_times()
         store_cpu = cpu_seconds(store_pid) if store_pid is not None else 0.0
         began, cpu = time.perf_counter(), time.process_time()
         with ThreadPoolExecutor(THREADS) as pool:
@@ -109,7 +109,7 @@ def _timed_round(robot: OneRobot, posts: int, settings: Settings, store_pid: int
         assert services.writes.wait_viewed(last, 600), "the views did not include the last post"
         seconds, cpu_seconds_spent = time.perf_counter() - began, time.process_time() - cpu
         store_cpu = cpu_seconds(store_pid) - store_cpu if store_pid is not None else 0.0
-        spent = keeper.view_times()
+        spent = keeper.progress.view_times()
     finally:
         services.close()
         store.close()

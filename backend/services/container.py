@@ -13,9 +13,9 @@ from segb_server.backend.services.ingest.service import IngestService
 from segb_server.backend.services.ops.result_cache import DataVersion, ResultCache
 from segb_server.backend.services.ops.server_log import ServerLog
 from segb_server.backend.services.people.erasure import RULE as ERASURE_RULE
-from segb_server.backend.services.people.mentions import RULE as MENTIONS_RULE
 from segb_server.backend.services.people.erasure import ErasureService
 from segb_server.backend.services.people.export import STORY, PersonExport
+from segb_server.backend.services.people.mentions import RULE as MENTIONS_RULE
 from segb_server.backend.services.people.places import forgetting
 from segb_server.backend.services.people.retention import Retention
 from segb_server.backend.services.reports.service import FOLDER as REPORTS_FOLDER
@@ -34,12 +34,12 @@ from segb_server.backend.services.timeline.kinds import KINDS, query_name
 from segb_server.backend.services.timeline.service import TimelineService
 from segb_server.backend.services.timeline.sources import KeptSource
 from segb_server.backend.services.views.graph_index import GraphIndex
-from segb_server.backend.services.views.keeper import KeptView
 from segb_server.backend.services.views.kept_queries.projection import KeptQueries
 from segb_server.backend.services.views.kept_queries.rows import KeptRows
 from segb_server.backend.services.views.pace import ViewsPace
 from segb_server.backend.services.views.seen_terms import SEEN_TERMS_FILE
 from segb_server.backend.services.views.shape_view import ShapeFindings
+from segb_server.backend.services.views.view import KeptView
 from segb_server.backend.services.writing.write_path import Role, WritePath
 from segb_server.backend.state.opening import open_state
 from segb_server.backend.store.base import Store
@@ -198,7 +198,11 @@ def build_services(
         views.rules, store, kept_findings if settings.keep_views else None, shape_findings, views.shape_rules
     )
     graph = GraphService(
-        catalog, store, index, wait_ready=lambda timeout: writes.wait_viewed(0, timeout), pending=writes.on_the_way
+        catalog,
+        store,
+        index,
+        wait_ready=lambda timeout: writes.wait_viewed(0, timeout),
+        pending=lambda limit: writes.on_the_way(limit, index.name),
     )
     shared_context = SharedContextService.open(
         Policy.from_settings(settings),
@@ -213,9 +217,7 @@ def build_services(
     )
     view_files = [folder / name for name in VIEW_FILES] if folder else []
     places = forgetting(writes.journal, shared_context, queries, server_log, view_files)
-    erasure = ErasureService(
-        store, catalog.get(ERASURE_RULE), writes, places, mentions_rule=catalog.get(MENTIONS_RULE)
-    )
+    erasure = ErasureService(store, catalog.get(ERASURE_RULE), writes, places, mentions_rule=catalog.get(MENTIONS_RULE))
     return Services(
         settings=settings,
         store=store,
@@ -230,7 +232,7 @@ def build_services(
             max_backlog=settings.journal_max_backlog,
         ),
         views_pace=ViewsPace(writes, settings.effective_views_max_lag_seconds, settings.views_max_hold_seconds),
-        reports=ReportService(catalog, store, cache, kept_reports, lag=writes.lag),
+        reports=ReportService(catalog, store, cache, kept_reports, lag=writes.view_lag),
         findings=findings,
         timeline=TimelineService([*timeline, FindingSource(findings)], kept_timeline.rows.last_change),
         graph=graph,

@@ -189,7 +189,7 @@ def test_an_index_kept_from_before_a_restart_draws_its_first_view_before_the_fir
     projector = ViewKeeper(store, Journal(SqliteDatabase(tmp_path / "journal.sqlite3")), [restarted])
     projector.start()
     try:
-        assert projector.wait_for(1, timeout=10)
+        assert projector.progress.wait_for(1, timeout=10)
         assert draws == [FIRST_VIEW]
         assert restarted.view(FIRST_VIEW) == fresh(store, FIRST_VIEW)
         assert draws == [FIRST_VIEW]  # the first request found it drawn

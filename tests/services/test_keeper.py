@@ -11,12 +11,9 @@ from pyoxigraph import DefaultGraph, NamedNode, Quad
 
 from segb_server.backend.services.ingest.service import post_entry
 from segb_server.backend.services.views.delta import Delta
-from segb_server.backend.services.views.keeper import (
-    MAX_REST_SECONDS,
-    RETRY_BUILD_SECONDS,
-    START_WITHIN_SECONDS,
-    ViewKeeper,
-)
+from segb_server.backend.services.views.keeper import MAX_REST_SECONDS, ViewKeeper
+from segb_server.backend.services.views.preparing import RETRY_BUILD_SECONDS
+from segb_server.backend.services.views.steps import START_WITHIN_SECONDS
 from segb_server.backend.services.writing.applier import Applied, quads_of
 from segb_server.backend.services.writing.journal import Journal, JournalEntry
 from segb_server.backend.state.database import StateUnavailable
@@ -100,7 +97,7 @@ def test_a_rest_is_cut_short_for_a_step_that_waited_through_a_slow_batch_and_kep
         view.wait_for_updates(3)
         third_began = view.updates[2][1]
         assert third_began - second_ended >= MAX_REST_SECONDS - 0.02
-        assert projector.wait_for(3, timeout=5)
+        assert projector.progress.wait_for(3, timeout=5)
     finally:
         projector.stop()
 
@@ -111,7 +108,7 @@ def test_a_view_whose_catch_up_fails_is_built_again_and_the_others_are_kept(tmp_
     projector = ViewKeeper(store, Journal(SqliteDatabase(tmp_path / "journal.sqlite3")), [broken, kept])
     projector.start()
     try:
-        assert projector.wait_for(3, timeout=5)  # the views' thread lives on, and every view is ready
+        assert projector.progress.wait_for(3, timeout=5)  # the views' thread lives on, and every view is ready
         assert broken.built == [3]
         assert [through for through, _, _ in kept.updates] == [3] and kept.built == []
     finally:
@@ -138,7 +135,7 @@ def test_steps_queued_past_the_bound_wait_without_their_triples_and_every_triple
     try:
         for entry in journal.entries_after(0, 60):
             keeper.on_applied(Applied([entry], quads_of([entry]), cleared=False))
-        assert keeper.wait_for(60, timeout=20)
+        assert keeper.progress.wait_for(60, timeout=20)
         assert keeper.most_queued_triples <= 100
         assert sorted(view.triples) == sorted(
             quad.subject.value + " " + quad.object.value for post in posts for quad in post
@@ -181,18 +178,18 @@ def test_the_views_being_built_are_named_while_the_store_holds_entries_they_miss
     keeper = ViewKeeper(
         OxigraphStore("urn:x:graph"), Journal(SqliteDatabase(tmp_path / "journal.sqlite3")), [quick, slow]
     )
-    assert keeper.building(applied=0) == []
-    assert keeper.building(applied=3) == ["quick", "slow"]
+    assert keeper.progress.building(applied=0) == []
+    assert keeper.progress.building(applied=3) == ["quick", "slow"]
     keeper.start()
     try:
         deadline = time.monotonic() + 10
         while not quick.ready:  # built in order: the quick one first, then the slow one waits
             assert time.monotonic() < deadline
             time.sleep(0.01)
-        assert keeper.building(applied=3) == ["slow"]
+        assert keeper.progress.building(applied=3) == ["slow"]
         slow.release.set()
-        while keeper.building(applied=3):
-            assert time.monotonic() < deadline, keeper.building(applied=3)
+        while keeper.progress.building(applied=3):
+            assert time.monotonic() < deadline, keeper.progress.building(applied=3)
             time.sleep(0.01)
         assert slow.built and slow.ready and quick.ready
     finally:
@@ -226,21 +223,21 @@ def test_a_view_whose_build_fails_is_set_aside_the_others_kept_current_and_it_is
     keeper = ViewKeeper(store, Journal(SqliteDatabase(tmp_path / "journal.sqlite3")), [failing, after])
     keeper.start()
     try:
-        assert keeper.wait_for(3, timeout=10)  # every view but the one set aside
+        assert keeper.progress.wait_for(3, timeout=10)  # every view but the one set aside
         assert after.ready and not failing.ready and after.built == [3] and failing.built == []
-        assert keeper.building(applied=3) == ["failing"]
+        assert keeper.progress.building(applied=3) == ["failing"]
         assert keeper.last_error == "failing: a view's bug while it is built"
         keeper.on_applied(step(4))  # kept by the others meanwhile
         after.wait_for_updates(1)
         assert [through for through, _, _ in after.updates] == [4] and failing.updates == []
         deadline = time.monotonic() + 4 * RETRY_BUILD_SECONDS
-        while keeper.building(applied=4):
-            assert time.monotonic() < deadline, keeper.building(applied=4)
+        while keeper.progress.building(applied=4):
+            assert time.monotonic() < deadline, keeper.progress.building(applied=4)
             time.sleep(0.01)
         assert failing.ready and failing.built in ([3], [4]) and failing.failures == 0 and keeper.last_error is None
         keeper.on_applied(step(5))
         failing.wait_for_updates(1)
-        assert keeper.wait_for(5, timeout=10)
+        assert keeper.progress.wait_for(5, timeout=10)
     finally:
         keeper.stop()
 
@@ -254,9 +251,9 @@ def test_a_view_whose_rebuild_after_a_failed_update_fails_is_set_aside_and_built
     keeper.start()
     try:
         keeper.on_applied(step(1))
-        assert keeper.wait_for(1, timeout=10)
+        assert keeper.progress.wait_for(1, timeout=10)
         deadline = time.monotonic() + 4 * RETRY_BUILD_SECONDS
-        while keeper.building(applied=1):
+        while keeper.progress.building(applied=1):
             assert time.monotonic() < deadline, keeper.last_error
             time.sleep(0.01)
         assert view.built == [0, 1] and view.failures == 0 and view.ready and keeper.last_error is None
@@ -286,10 +283,52 @@ def test_a_view_set_aside_and_built_when_an_outage_has_every_view_tried_again_is
         while not (failing.ready and away.ready):
             assert time.monotonic() < deadline, keeper.last_error
             time.sleep(0.01)
-        assert keeper.last_error is None and keeper.building(applied=3) == []
+        assert keeper.last_error is None and keeper.progress.building(applied=3) == []
         keeper.on_applied(step(4))
         failing.wait_for_updates(1)
-        assert keeper.wait_for(4, timeout=10)
+        assert keeper.progress.wait_for(4, timeout=10)
         assert failing.built == [3] and away.built == [3]  # built once: put back, not built again as set aside
     finally:
+        keeper.stop()
+
+
+class GatedView(RecordingView):
+    """A view whose update waits for `release` (a view busy with a large import)."""
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name)
+        self.release = threading.Event()
+
+    def update(self, delta: Delta, through: int) -> None:
+        self.began.set()
+        assert self.release.wait(timeout=20)
+        super().update(delta, through)
+
+
+def test_a_view_busy_with_a_large_batch_holds_no_other_view_back(tmp_path: Path) -> None:
+    """Each view follows the journal at its own pace: while one is busy with an import, the others take the posts
+    that came after it, their lag told apart from its own; the busy one then takes every batch it missed."""
+    busy, reports = GatedView("graph"), CollectingView("reports/conversations")
+    keeper = ViewKeeper(
+        OxigraphStore("urn:x:graph"), Journal(SqliteDatabase(tmp_path / "journal.sqlite3")), [busy, reports]
+    )
+    keeper.start()
+    try:
+        keeper.on_applied(step(1))  # the import
+        assert busy.began.wait(timeout=10)
+        for sequence in (2, 3, 4):  # posts after it
+            keeper.on_applied(step(sequence))
+        deadline = time.monotonic() + 5
+        while keeper.progress.view_through("reports/conversations") < 4:
+            assert time.monotonic() < deadline, reports.updates
+            time.sleep(0.01)
+        assert keeper.progress.view_through("graph") == 0 and keeper.progress.through == 0 and not busy.updates
+        lags = keeper.progress.view_lags(applied=4)
+        assert set(lags) == {"graph"} and lags["graph"][0] == 4
+        assert not keeper.progress.wait_for(4, timeout=0.1)  # every view's: the busy one's too
+        busy.release.set()
+        assert keeper.progress.wait_for(4, timeout=10)
+        assert [through for through, _, _ in busy.updates][-1] == 4 and len(busy.updates) <= 2  # what it missed, as one
+    finally:
+        busy.release.set()
         keeper.stop()

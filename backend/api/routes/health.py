@@ -45,8 +45,10 @@ async def live() -> ProbeResponse:
         'is full (`"journal": false`). The store kind is `virtuoso`, `oxigraph`, `memory` or `sparql`, so on '
         'the Virtuoso stack the body is `{"ready": true, "virtuoso": true}`. While the store has journal entries '
         'to apply, `"apply_lag": {"entries", "seconds"}` says how far behind it is, and '
-        '`"reports_lag": {"entries", "seconds"}` how far the views (the reports\' rows and the graph index) are '
-        'behind the store (both absent once caught up); `"views_building"` lists the views being built (at '
+        '`"reports_lag": {"entries", "seconds"}` how far the views (the reports\' rows, the timeline, the '
+        "findings, the graph index) are behind the store, the one furthest behind; each view advances at its own "
+        'pace, and `"views_lag": {view: {"entries", "seconds"}}` tells each one behind (all absent once caught up); '
+        '`"views_building"` lists the views being built (at '
         "start, or after a change of their definitions), absent once built; while the views are behind because "
         'reading the store or writing their own storage fails, `"views_error"` tells the error being retried.'
     ),
@@ -82,8 +84,13 @@ async def ready(services: ServicesDep) -> ProbeResponse:
             lag.apply_entries
         ):  # only then: the tutorial's `{"ready": true, "virtuoso": true}` stays exact when caught up
             body["apply_lag"] = {"entries": lag.apply_entries, "seconds": round(lag.apply_seconds, 3)}
-        if lag.views_entries:  # the reports' rows and the graph index
+        if lag.views_entries:  # the views' oldest: the reports' rows, the timeline, the findings, the graph index
             body["reports_lag"] = {"entries": lag.views_entries, "seconds": round(lag.views_seconds, 3)}
+            # Each view advances at its own pace: which ones are behind, and how far.
+            body["views_lag"] = {
+                view: {"entries": entries, "seconds": round(seconds, 3)}
+                for view, (entries, seconds) in sorted(services.writes.view_lags().items())
+            }
         building = services.writes.building_views()
         if building:
             body["views_building"] = building

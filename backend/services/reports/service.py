@@ -117,10 +117,10 @@ class ReportService:
         store: Store,
         cache: ResultCache | None = None,
         kept: KeptQueries | None = None,
-        lag: Callable[[], Lag] | None = None,
+        lag: Callable[[str | None], Lag] | None = None,
     ) -> None:
-        """`lag`: how far the store and the views are behind the journal (the write path's), for answers that
-        say how far behind they are."""
+        """`lag(view)`: how far the store and a kept view (every view, for None) are behind the journal (the write
+        path's), for answers that say how far behind they are."""
         self.catalog = catalog
         self.store = store
         self.cache = cache or ResultCache(DataVersion(), enabled=False)
@@ -168,7 +168,9 @@ class ReportService:
         table = self._run(name, filters, limit, offset, after)
         if self._lag is None:
             return table
-        return replace(table, behind=Behind.of(self._lag(), table.served_from))
+        kept = self._kept.reports.get(table.query.name) if self._kept is not None else None
+        view = kept.name if kept is not None and table.served_from == "rows" else None
+        return replace(table, behind=Behind.of(self._lag(view), table.served_from))
 
     def _run(
         self, name: str, filters: Mapping[str, str | None], limit: int, offset: int, after: str | None

@@ -176,20 +176,33 @@ class WritePath:
 
     def wait_viewed(self, sequence: int, timeout: float) -> bool:
         """Wait until every view includes entry `sequence` (True), or `timeout` seconds passed."""
-        return self.keeper.wait_for(sequence, timeout)
+        return self.keeper.progress.wait_for(sequence, timeout)
 
     def lag(self) -> Lag:
         apply_entries, apply_seconds = self.applier.lag()
-        views_entries, views_seconds = self.keeper.lag(self.applier.applied)
+        views_entries, views_seconds = self.keeper.progress.lag(self.applier.applied)
         return Lag(apply_entries, apply_seconds, views_entries, views_seconds)
+
+    def view_lag(self, view: str | None) -> Lag:
+        """How far the store and view `view` (every view, for None) are behind the journal: each view advances at
+        its own pace."""
+        apply_entries, apply_seconds = self.applier.lag()
+        if view is None or view not in self.keeper.lanes:
+            return self.lag()
+        views_entries, views_seconds = self.keeper.progress.lag(self.applier.applied, view)
+        return Lag(apply_entries, apply_seconds, views_entries, views_seconds)
+
+    def view_lags(self) -> dict[str, tuple[int, float]]:
+        """Each view behind the store: entries it misses, and how long the oldest of them has waited."""
+        return self.keeper.progress.view_lags(self.applier.applied)
 
     def views_behind(self) -> int:
         """Entries the store has and the views do not (read in memory; 0 before the views are first ready)."""
-        return self.keeper.behind(self.applier.applied)
+        return self.keeper.progress.behind(self.applier.applied)
 
     def views_lag_seconds(self) -> float:
         """How long the oldest entry the views miss has waited (reads the journal; 0 when they miss none)."""
-        return self.keeper.lag(self.applier.applied)[1]
+        return self.keeper.progress.lag(self.applier.applied)[1]
 
     def views_failing(self) -> bool:
         """The views' keeper is retrying an outage (a store away, the views' storage failing), or the views'
@@ -216,13 +229,13 @@ class WritePath:
 
     def building_views(self) -> list[str]:
         """The views being built while the store holds entries they miss (see `ViewKeeper.building`)."""
-        return self.keeper.building(self.applier.applied)
+        return self.keeper.progress.building(self.applier.applied)
 
-    def on_the_way(self, limit: int) -> list[Quad] | None:
-        """The triples the store has and the views do not have yet (a reader adds them to what a view holds to
-        answer as the store would); None when they cannot stand in for the store (a clearing among them, or
-        more than `limit` entries)."""
-        return self.keeper.pending(self.applier.applied, limit)
+    def on_the_way(self, limit: int, view: str | None = None) -> list[Quad] | None:
+        """The triples the store has and the views (or `view`) do not have yet (a reader adds them to what a view
+        holds to answer as the store would); None when they cannot stand in for the store (a clearing among them,
+        or more than `limit` entries)."""
+        return self.keeper.progress.pending(self.applier.applied, limit, view if view in self.keeper.lanes else None)
 
 
 def _leaderships(settings: Settings, role: Role, in_memory: bool) -> tuple[Lead, Lead]:
