@@ -34,6 +34,11 @@ def add_erase(commands: argparse._SubParsersAction, store_options: Callable[[arg
     erase.add_argument(
         "--dry-run", action="store_true", help="only list what would be erased, counted by kind; nothing is written"
     )
+    erase.add_argument(
+        "--mentions", choices=("concerning", "store"), default="concerning",
+        help='where the person\'s names are replaced by "[erased]" in the texts kept: those that concern them '
+        "(default: replies to them, events about them, their conversations) or every text of the store",
+    )  # fmt: skip
 
 
 def add_retention(
@@ -87,26 +92,28 @@ def erase(args: argparse.Namespace, settings: Settings, services_of: ServicesOf)
     human = to_term(Parameter("human", "iri"), given[0]).value
     if args.dry_run:
         with services_of(settings) as services:  # not started: a dry run reads the store and writes nothing
-            preview = services.erasure.preview(human)
+            preview = services.erasure.preview(human, args.mentions)
         kinds = ", ".join(f"{kind} {count}" for kind, count in preview.kinds.items())
         print(f"dry run: would erase {preview.resources} resources ({kinds}), {preview.triples} triples in the "
-              f"store; left alone: {preview.left_out}; nothing was written")  # fmt: skip
+              f"store, and redact the person's names in {preview.mentions} texts; left alone: {preview.left_out}; "
+              "nothing was written")  # fmt: skip
         return 0
     actor = args.by or f"{getpass.getuser()} (segb erase)"
     with services_of(settings) as services:
         services.start()  # the applier and the views' keeper: the store and the views follow the erasure
-        done = services.erasure.erase_human(human, args.reason, actor)
+        done = services.erasure.erase_human(human, args.reason, actor, args.mentions)
     receipt = done.receipt
     print(
         f"erased: {receipt.triples_removed} triples from {done.receipts_redacted} posts "
-        f"({done.resources} resources); ledger entry {receipt.sequence}, log_id {receipt.log_id}"
+        f"({done.resources} resources), the person's names redacted in {done.mentions_redacted} texts; "
+        f"ledger entry {receipt.sequence}, log_id {receipt.log_id}"
     )
     if done.name_still_mentioned:
         kept = done.name_still_mentioned
-        texts = "1 text the rule keeps" if kept == 1 else f"{kept} texts the rule keeps"
+        texts = "1 text" if kept == 1 else f"{kept} texts"
         print(
-            f"note: {texts} (a robot's reply, an activity's label) still {'contains' if kept == 1 else 'contain'} "
-            "the person's first name; find them with a SPARQL query"
+            f"note: {texts} that concern someone else still {'contains' if kept == 1 else 'contain'} one of the "
+            "person's names; --mentions store redacts them too"
         )
     return 0
 

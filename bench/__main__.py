@@ -21,7 +21,7 @@ import sys
 import tempfile
 import time
 import traceback
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -33,6 +33,8 @@ from bench.measure import machine, peak_rss_mib
 from bench.names import BASELINE, ONE_REPORT, VIRTUOSO_JOURNAL, VIRTUOSO_STORE
 from bench.probes import ReadinessProbe
 from bench.report import Figures, write_report
+from bench.republish import Documents, republish_runs
+from bench.republish import documents as republish_documents
 from bench.runs import Cumulative, cumulative, journal_size, many_robots, small_posts, stored_triples
 from bench.server import ROOT, baseline_server, null_server, python_path, segb_server
 from bench.virtuoso import count_graph, measure_floor
@@ -58,15 +60,16 @@ class Profile:
     # a cold machine's Chromium and UI start-up before the watch begins (600 at LIVE_RATE is a minute).
     live_posts: int
     browser_seconds: float  # how long its conversations are watched in Chromium, before the pages are measured
+    republish_sizes: tuple[int, ...]  # the tutorial robot's interactions before its re-publishes are measured
 
 
 PROFILES = {
-    "tiny": Profile(30, 4, 6, 8, (2_000,), 3, 2, 600, 2),
-    "quick": Profile(300, 16, 100, 100, (100_000,), 20, 20, 3_000, 10),
-    "full": Profile(2_000, 16, 200, 1_000, (100_000, 1_000_000), 30, 20, 6_000, 10),
+    "tiny": Profile(30, 4, 6, 8, (2_000,), 3, 2, 600, 2, (10, 40)),
+    "quick": Profile(300, 16, 100, 100, (100_000,), 20, 20, 3_000, 10, (100, 1_000, 2_000)),
+    "full": Profile(2_000, 16, 200, 1_000, (100_000, 1_000_000), 30, 20, 6_000, 10, (100, 1_000, 2_000)),
 }
 BREAKDOWN_POSTS = 300
-SECTIONS = ("small", "robots", "workers", "steady", "cumulative", "reports")
+SECTIONS = ("small", "robots", "workers", "steady", "cumulative", "reports", "republish")
 # API processes (API_WORKERS) sharing one Virtuoso in the "workers" section, with the state in SQLite files
 # (False) or in PostgreSQL (True, STATE_URL).
 WORKER_RUNS = ((1, False), (2, False), (4, False), (2, True), (4, True))
@@ -123,6 +126,7 @@ class Loads:
     deltas: list[str]
     robots: list[list[str]]
     live: list[LivePost]
+    republish: list[Documents] = field(default_factory=list)
 
     @classmethod
     def of(cls, profile: Profile) -> Loads:
@@ -150,8 +154,12 @@ def measure(name: str, profile: Profile, virtuoso: bool, sections: frozenset[str
 def _measure_all(profile: Profile, virtuoso: bool, sections: frozenset[str], figures: Figures) -> None:
     with tempfile.TemporaryDirectory(prefix="segb-bench-") as scratch:
         root = Path(scratch)
-        loads = Loads.of(profile)
+        # The republish section makes its own documents: alone, it waits for no other section's payloads.
+        loads = Loads([], [], []) if sections == {"republish"} else Loads.of(profile)
         runs = [run_embedded, run_virtuoso] if virtuoso else [run_embedded]
+        if "republish" in sections:
+            # Made before any server runs: the client's rdflib takes seconds a document at 2,000 interactions.
+            loads = replace(loads, republish=list(republish_documents(profile.republish_sizes)))
         for run in runs:
             try:
                 run(profile, loads, root, figures, sections)
@@ -188,6 +196,8 @@ def run_embedded(profile: Profile, loads: Loads, root: Path, figures: Figures, s
     if "steady" in sections:
         with segb_server("oxigraph", root / "steady", {"INGEST_ACK": "journal"}) as server:
             figures.steady[label] = steady_lag(server.url, deltas, LIVE_RATE, profile.steady_seconds)
+    if "republish" in sections:
+        figures.republish[label] = republish_runs(segb_server("oxigraph", root / "republish"), loads.republish)
     if "cumulative" in sections:
         with segb_server("oxigraph", root / "cumulative") as server:
             with ReadinessProbe(server.url, 0.02) as probe:
@@ -314,6 +324,9 @@ def run_virtuoso(profile: Profile, loads: Loads, root: Path, figures: Figures, s
         if "steady" in sections:
             with segb_server("virtuoso", root / "v-steady", env(GRAPH + "/steady", INGEST_ACK="journal")) as server:
                 figures.steady[label] = steady_lag(server.url, deltas, LIVE_RATE, profile.steady_seconds)
+        if "republish" in sections:
+            server = segb_server("virtuoso", root / "v-republish", env(GRAPH + "/republish"))
+            figures.republish[label] = republish_runs(server, loads.republish)
         if "cumulative" in sections:
             with segb_server("virtuoso", root / "v-cumulative", env(GRAPH + "/cumulative")) as server:
                 figures.cumulative[label] = run_cumulative(

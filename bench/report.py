@@ -13,6 +13,7 @@ from bench.freshness import SteadyLag
 from bench.live import LiveReports
 from bench.measure import Latency
 from bench.names import BASELINE, NO_OP, VIRTUOSO_JOURNAL, VIRTUOSO_STORE
+from bench.republish import Republish, republish_section
 from bench.runs import Cumulative, ManyRobots, SmallPosts
 from bench.tables import table
 from bench.targets import targets
@@ -28,6 +29,7 @@ class Figures:
     robots: dict[str, ManyRobots] = field(default_factory=dict)
     steady: dict[str, SteadyLag] = field(default_factory=dict)
     cumulative: dict[str, Cumulative] = field(default_factory=dict)
+    republish: dict[str, list[Republish]] = field(default_factory=dict)  # by store
     health_under_load: Latency | None = None
     live: dict[tuple[str, int], LiveReports] = field(default_factory=dict)
     peak_rss_mib: dict[tuple[str, int], float | None] = field(default_factory=dict)
@@ -85,6 +87,7 @@ def _sections(f: Figures) -> list[str]:
         *_robots_section(f),
         *_steady_section(f),
         *_cumulative_section(f),
+        *republish_section(getattr(f, "republish", {})),  # figures saved before it have none
         *_live_section(f),
         *_health_section(f),
         *analysis.memory_section(f.peak_rss_mib),
@@ -382,8 +385,8 @@ def write_report(f: Figures, path: Path) -> None:
         "minutes here) or `python -m bench --profile full` (1,000 interactions, reports at 100,000 and 1,000,000",
         "triples; add `--no-virtuoso` for the embedded store alone). `--save-figures` keeps what a run measured,",
         "`--from-figures` writes this page again from it, and `--add-reports-from` adds another run's report sizes.",
-        "`--only SECTION` (small, robots, workers, steady, cumulative, reports; repeatable) measures part of a",
-        "profile, and `--report-sizes N …` sets the store sizes of the reports section.",
+        "`--only SECTION` (small, robots, workers, steady, cumulative, reports, republish; repeatable) measures",
+        "part of a profile, and `--report-sizes N …` sets the store sizes of the reports section.",
         "",
         *(line for note in getattr(f, "added_runs", []) for line in (note, "")),
     ]

@@ -1,7 +1,8 @@
 """Run the emotion-mirror robot against a SEGB server (`python3 -m segb_server.examples.emotion_mirror.run`).
 
 Replays a script (the built-in one with Maria, or `--script file.json`) into the mission, publishing the
-robot's whole graph with `SEGBPublisher` after every event, and prints one line per event.
+robot's whole graph with `SEGBPublisher` after every event (or, with `--publish new`, what it added since the
+last publish), and prints one line per event.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from semantic_log_generator.shared_context import HTTPSharedContextResolver
 
 from segb_server.examples.emotion_mirror.driver import play
 from segb_server.examples.emotion_mirror.mission import EmotionMirrorMission, RobotConfig
+from segb_server.examples.emotion_mirror.publishing import NewOnly
 from segb_server.examples.emotion_mirror.replier import DEFAULT_MODEL, ollama_replier
 from segb_server.examples.emotion_mirror.script import Script, ScriptError, default_script, load_script
 
@@ -54,6 +56,13 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--script", type=Path, help="JSON script of timed expressions and utterances")
     parser.add_argument("--ollama-host", help="Ollama server (default: OLLAMA_HOST, else http://127.0.0.1:11434)")
     parser.add_argument("--ollama-model", default=DEFAULT_MODEL, help=f"Ollama model (default {DEFAULT_MODEL})")
+    parser.add_argument(
+        "--publish",
+        choices=("whole", "new"),
+        default="whole",
+        help="send the robot's whole graph after every event, as the tutorial does (default), or only the triples "
+        "added since the last publish (publishing.py)",
+    )
     return parser
 
 
@@ -61,9 +70,10 @@ def _run(server: str, args: argparse.Namespace, script: Script) -> None:
     config = _config(args.ollama_model)
     publisher = SEGBPublisher(base_url=server, token=args.token, default_user=config.robot_id)
     last: dict[str, Any] = {}
+    new_only = NewOnly(publisher) if args.publish == "new" else None
 
     def publish(logger: SemanticSEGBLogger) -> None:
-        last.update(logger.publish(publisher))
+        last.update(new_only.publish(logger) if new_only else logger.publish(publisher))
 
     mission = EmotionMirrorMission.start(
         config,

@@ -24,10 +24,11 @@ def test_a_person_is_exported_then_erased_from_the_command_line(data_dir: Path) 
 
     erased = segb("erase", "--data-dir", str(data_dir), "--human", BOB, "--reason", "request 12", "--by", "dpo")
     assert erased.returncode == 0, erased.stderr
-    assert "erased: 86 triples from 1 posts" in erased.stdout
-    assert "2 texts the rule keeps" in erased.stdout  # the mirror robot's reply and a label name him
+    assert "erased: 88 triples from 1 posts" in erased.stdout  # 86, and 2 texts naming him replaced
+    assert "names redacted in 2 texts" in erased.stdout and "note:" not in erased.stdout
     everything = segb("export", "--data-dir", str(data_dir), "--format", "ntriples").stdout
     assert BOB not in everything and '"Bob"@en' not in everything
+    assert "Sorry, [erased]. I did not mean" in everything and "Recognise [erased]'s emotion" in everything
     again = segb("export", "--data-dir", str(data_dir), "--human", BOB)
     assert again.returncode == 2 and "holds nothing about" in again.stderr
     missing = segb("erase", "--data-dir", str(data_dir), "--human", BOB, "--reason", "again")

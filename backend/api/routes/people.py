@@ -13,6 +13,7 @@ from segb_server.backend.api.deps import Admin, ServicesDep
 from segb_server.backend.services.formats import PERSON_EXPORTS, names, negotiate
 from segb_server.backend.services.graph.export import write_graph
 from segb_server.backend.services.people.erasure import MAX_REASON, ErasurePreview
+from segb_server.backend.services.people.mentions import Scope
 from segb_server.backend.services.people.story_page import PAGE_POLICY, story_page
 from segb_server.backend.services.sparql.catalog import Parameter, to_term
 
@@ -28,6 +29,12 @@ class ErasureRequest(BaseModel):
         max_length=MAX_REASON,
     )
     dry_run: bool = Field(False, description="Only say what the erasure would take; nothing is written.")
+    mentions: Scope = Field(
+        "concerning",
+        description='Where the person\'s names are replaced by the mark "[erased]" in the texts kept: '
+        "`concerning` (a reply to them, an event about them, a message of their conversations, by the rules of "
+        "reading) or `store` (every text of the store, someone else's included).",
+    )
 
 
 class ErasurePreviewAnswer(BaseModel):
@@ -44,13 +51,15 @@ class ErasurePreviewAnswer(BaseModel):
         description="Resources the rule reached but would leave alone: an agent (a person, a robot), a class or a "
         "predicate linked to the person's resources, or what was reached only through one of them."
     )
+    mentions: int = Field(description='Texts kept that would have the person\'s names replaced by "[erased]".')
 
     @classmethod
     def of(cls, preview: ErasurePreview) -> ErasurePreviewAnswer:
         return cls(
-            message=f"Would erase {preview.resources} resources ({preview.triples} triples); nothing was written.",
+            message=f"Would erase {preview.resources} resources ({preview.triples} triples) and redact the "
+            f"person's names in {preview.mentions} texts; nothing was written.",
             iri=preview.human, resources=preview.resources, kinds=preview.kinds, triples=preview.triples,
-            left_out=preview.left_out,
+            left_out=preview.left_out, mentions=preview.mentions,
         )  # fmt: skip
 
 
@@ -61,9 +70,13 @@ class ErasureAnswer(BaseModel):
     triples_removed: int = Field(description="Triples removed from the posts' content (and from the store).")
     receipts_redacted: int = Field(description="Posts whose content lost triples.")
     resources: int = Field(description="Resources erased with the person (their messages, emotions read, …).")
+    mentions_redacted: int = Field(
+        description="Texts kept with the person's names replaced by \"[erased]\" (a robot's greeting, an "
+        "activity's label): the old text left with the rest, the redacted one took its place."
+    )
     name_still_mentioned: int = Field(
-        description="Texts left in the log that still contain the person's first name: a robot's reply or an "
-        "activity's label, which the rule keeps (free text is not rewritten). Look for them with /sparql."
+        description="Texts left in the store that still contain one of the person's names: ones that concern "
+        "someone else (with `mentions: store`, none). Look for them with /sparql."
     )
     seconds: dict[str, float] = Field(
         description="How long each step took: found (the rule run on the store), journaled (the posts redacted and "
@@ -84,7 +97,10 @@ class ErasureAnswer(BaseModel):
         "Erases a person (GDPR Art. 17) from the store, every view, the journal's posts, the shared contexts, the "
         "copies users' SPARQL runs on and the server log: the person, the messages they sent, the emotions read on "
         "them, the shared events about them alone and their observations (the rule: `sparql/people/erase.rq`). "
-        "What others said stays; a robot's reply stays and loses its links to what was erased. The erasure is "
+        "What others said stays; a robot's reply stays and loses its links to what was erased. The person's names "
+        '(first, full, given names and labels the log states for them) are replaced by "[erased]" in the texts '
+        "kept that concern them (`sparql/people/mentions.rq`), or in every text with `mentions: store`. The "
+        "erasure is "
         "one entry of the ledger (who, when, why, which posts, how many triples), which keeps verifying. "
         "A robot re-sending the erased triples later has them held back (counted as `triples_withheld`). "
         "It takes only what concerns that person: each link the rule follows must lead to a resource of the "
@@ -98,8 +114,8 @@ def erase_human(body: ErasureRequest, services: ServicesDep, principal: Admin) -
     # A plain `def` route runs in the thread pool: the erasure reads and writes the journal and the store.
     iri = to_term(Parameter("iri", "iri"), body.iri.strip()).value
     if body.dry_run:
-        return ErasurePreviewAnswer.of(services.erasure.preview(iri))
-    done = services.erasure.erase_human(iri, body.reason, principal.username)
+        return ErasurePreviewAnswer.of(services.erasure.preview(iri, body.mentions))
+    done = services.erasure.erase_human(iri, body.reason, principal.username, body.mentions)
     record = done.receipt
     return ErasureAnswer(
         message=f"Erased: {record.triples_removed} triples removed.",
@@ -109,6 +125,7 @@ def erase_human(body: ErasureRequest, services: ServicesDep, principal: Admin) -
         receipts_redacted=done.receipts_redacted,
         resources=done.resources,
         views_rebuilt=done.views_rebuilt,
+        mentions_redacted=done.mentions_redacted,
         name_still_mentioned=done.name_still_mentioned,
         seconds=done.seconds,
     )

@@ -23,8 +23,9 @@ from segb_server.backend.services.errors import OUTAGES, InvalidParameter, Servi
 from segb_server.backend.services.ingest.group_commit import GroupCommit
 from segb_server.backend.services.ingest.parsing import invalid_rdf, parse_quads, refuse_triple_terms, skolemized
 from segb_server.backend.services.ingest.payloads import RdfPayload
+from segb_server.backend.services.ingest.republish import BlockMemory
 from segb_server.backend.services.ingest.skolem import might_contain_blank_nodes
-from segb_server.backend.services.writing.journal import PostEntry, triple_digest
+from segb_server.backend.services.writing.journal import EpochMoved, PostEntry, triple_digest
 from segb_server.backend.services.writing.receipts import Receipt
 from segb_server.backend.services.writing.write_path import WritePath
 from segb_server.backend.store.base import StoreUnavailable
@@ -82,8 +83,9 @@ class ImportResult:
 
 
 class IngestService:
-    """Idempotent ingest: the client re-sends its whole graph every time, so the work that grows with the
-    journal is one membership test per triple, and only new triples are recorded and written.
+    """Idempotent ingest: the client re-sends its whole graph every time, so the blocks of it an account had
+    recorded are skipped before parsing (republish.py), the work that grows with the journal is one membership
+    test per triple parsed, and only new triples are recorded and written.
 
     `ack` decides when a post is answered: once its entry is durable in the journal ("journal"), or once the
     store has applied it too ("store", so the next read shows it)."""
@@ -106,22 +108,19 @@ class IngestService:
         self._apply_timeout = apply_timeout
         self._max_backlog = max_backlog
         self._writer: GroupCommit[PostEntry, Receipt] = GroupCommit(writes.journal.append_posts)
+        self.blocks = BlockMemory()  # the re-sent blocks each account had recorded, skipped unparsed
 
     def ingest(self, payload: RdfPayload, *, actor: str, scopes: tuple[str, ...] = ()) -> IngestResult:
         """Parse (concurrently with other posts), check, then journal the post; returns once its entry is
         durable (and applied, with ack "store")."""
         started = time.perf_counter()
         self._refuse_past_backlog()
-        quads = parse_quads(payload.data, payload.rdf_format, max_triples=self._max_triples)
-        check_scopes(quads, scopes)
-        quads = skolemized(payload.data, quads, self._skolem_base)
-        post = post_entry(quads, actor, payload.claimed_user, hashlib.sha256(payload.data).hexdigest())
-        receipt = self._writer.submit(post)
+        receipt, received, parsed = self._record(payload, actor, scopes)
         self._acknowledge(receipt)
         duration_ms = round((time.perf_counter() - started) * 1000, 3)
         logger.debug(
-            "ingest log_id=%s actor=%s claimed_user=%s bytes=%d received=%d new=%d ms=%.1f",
-            receipt.log_id, actor, payload.claimed_user, len(payload.data), len(quads), receipt.triples_new,
+            "ingest log_id=%s actor=%s claimed_user=%s bytes=%d received=%d parsed=%d new=%d ms=%.1f",
+            receipt.log_id, actor, payload.claimed_user, len(payload.data), received, parsed, receipt.triples_new,
             duration_ms,
         )  # fmt: skip
         withheld = receipt.triples_withheld or 0
@@ -131,7 +130,34 @@ class IngestService:
                 "post log_id=%s actor=%s re-sent %d erased triples; they were not recorded", receipt.log_id, actor,
                 withheld,
             )  # fmt: skip
-        return IngestResult(receipt.log_id, len(quads), receipt.triples_new, duration_ms, receipt.sequence, withheld)
+        return IngestResult(receipt.log_id, received, receipt.triples_new, duration_ms, receipt.sequence, withheld)
+
+    def _record(self, payload: RdfPayload, actor: str, scopes: tuple[str, ...]) -> tuple[Receipt, int, int]:
+        """Read the payload for what is new (republish.py), check it and journal it: its receipt, the triples
+        received and those parsed. Read whole again when a clearing or an erasure came between reading and recording."""
+        account, payload_sha256 = (actor, scopes), hashlib.sha256(payload.data).hexdigest()
+        epoch = self.journal.epoch()
+        reading = self.blocks.read(payload.data, payload.rdf_format, account, epoch, self._max_triples)
+        check_scopes(reading.quads, scopes)
+        quads = skolemized(reading.parsed, reading.quads, self._skolem_base) if reading.parsed else reading.quads
+        if reading.overlaps(quads):  # a skipped block's subject is also among those parsed: read whole
+            return self._record_whole(payload, actor, scopes, payload_sha256)
+        post = post_entry(quads, actor, payload.claimed_user, payload_sha256, held=reading.held, epoch=epoch)
+        try:
+            receipt = self._writer.submit(post)
+        except EpochMoved:
+            return self._record_whole(payload, actor, scopes, payload_sha256)
+        self.blocks.recorded(reading, account, epoch, receipt.triples_withheld or 0, self.journal.holds)
+        return receipt, len(quads) + reading.held_quads, len(quads)
+
+    def _record_whole(
+        self, payload: RdfPayload, actor: str, scopes: tuple[str, ...], payload_sha256: str
+    ) -> tuple[Receipt, int, int]:
+        quads = parse_quads(payload.data, payload.rdf_format, max_triples=self._max_triples)
+        check_scopes(quads, scopes)
+        post = post_entry(skolemized(payload.data, quads, self._skolem_base), actor, payload.claimed_user,
+                          payload_sha256)  # fmt: skip
+        return self._writer.submit(post), len(quads), len(quads)
 
     def delete_all(self, *, actor: str, claimed_user: str | None = None) -> ClearResult:
         receipt = self.journal.append_clear(log_id=str(uuid.uuid4()), user=actor, claimed_user=claimed_user)
@@ -186,10 +212,20 @@ class IngestService:
             )
 
 
-def post_entry(quads: list[Quad], user: str, claimed_user: str | None, payload_sha256: str) -> PostEntry:
-    """A post as the journal records it: each distinct triple as its N-Triples line, as received."""
+def post_entry(
+    quads: list[Quad],
+    user: str,
+    claimed_user: str | None,
+    payload_sha256: str,
+    *,
+    held: int = 0,
+    epoch: int | None = None,
+) -> PostEntry:
+    """A post as the journal records it: each distinct triple as its N-Triples line, as received (`held`: the
+    triples of re-sent blocks left unparsed, which the journal held at `epoch`)."""
     lines = list(dict.fromkeys(f"{term_text(q.subject)} {q.predicate} {term_text(q.object)}" for q in quads))
-    return PostEntry(str(uuid.uuid4()), user, claimed_user, payload_sha256, lines, [triple_digest(x) for x in lines])
+    digests = [triple_digest(x) for x in lines]
+    return PostEntry(str(uuid.uuid4()), user, claimed_user, payload_sha256, lines, digests, held, epoch)
 
 
 def check_scopes(quads: list[Quad], scopes: tuple[str, ...]) -> None:

@@ -19,9 +19,10 @@ from collections.abc import Callable
 from contextlib import nullcontext
 from dataclasses import dataclass, field
 
-from pyoxigraph import Literal, RdfFormat, parse
+from pyoxigraph import Literal, NamedNode, RdfFormat, parse
 
 from segb_server.backend.services.errors import Conflict, InvalidParameter, NotFound
+from segb_server.backend.services.people.mentions import Mentions, Scope, mentions, names_of, still_mentioned
 from segb_server.backend.services.people.reach import (
     check_erasable,
     check_person_types,
@@ -40,7 +41,7 @@ from segb_server.backend.services.writing.erasure import (
 )
 from segb_server.backend.services.writing.receipts import Receipt
 from segb_server.backend.services.writing.write_path import WritePath
-from segb_server.backend.store.base import Store, StoreUnavailable, select
+from segb_server.backend.store.base import Store, StoreUnavailable
 
 logger = logging.getLogger("segb.people")
 
@@ -83,8 +84,10 @@ class ErasureResult:
     receipts_redacted: int
     resources: int
     views_rebuilt: bool
-    # Literals the rule keeps (a robot's reply, an activity's label) that still hold the person's first name:
-    # free text is not rewritten, and whoever erases should know what remains.
+    # Texts kept with the person's names replaced by the mark (mentions.py), and literals that still hold one of
+    # their names afterwards (what concerns someone else, unless the erasure was store-wide): whoever erases
+    # should know what remains.
+    mentions_redacted: int = 0
     name_still_mentioned: int = 0
     seconds: dict[str, float] = field(default_factory=dict)  # how long each step took (found, journaled, …)
 
@@ -100,6 +103,7 @@ class ErasurePreview:
     kinds: dict[str, int]
     triples: int
     left_out: int
+    mentions: int = 0  # texts kept that would have the person's names replaced by the mark
 
 
 class ErasureService:
@@ -112,10 +116,12 @@ class ErasureService:
         writes: WritePath,
         forgetting: Forgetting,
         *,
+        mentions_rule: CatalogQuery,
         views_timeout: float = 120.0,
     ) -> None:
         self.store = store
         self.rule = rule
+        self.mentions_rule = mentions_rule
         self.writes = writes
         self.forgetting = forgetting
         self.views_timeout = views_timeout
@@ -131,31 +137,35 @@ class ErasureService:
         name someone without typing them): only an erasure, which cannot be undone, asks for a person's type."""
         check_person_types(human, standing(self.store, [human])[human].types)
 
-    def preview(self, human: str) -> ErasurePreview:
+    def preview(self, human: str, scope: Scope = "concerning") -> ErasurePreview:
         """What erasing `human` would take, as the store holds it now; nothing is written (blocking). 404 and 422
         as for the erasure itself."""
         check_erasable(self.store, human)
         found = reach(self.store, self.rule, human)
         triples = len(set(triples_about(self.store, found.resources)))
-        return ErasurePreview(human, len(found.resources), kinds(self.store, found.resources), triples, found.left_out)
+        texts = len(self._mentions(human, found.resources, scope))
+        return ErasurePreview(
+            human, len(found.resources), kinds(self.store, found.resources), triples, found.left_out, texts
+        )
 
-    def erase_human(self, human: str, reason: str, actor: str) -> ErasureResult:
-        """Erase `human` everywhere; 404 when neither the store nor the journal holds anything about them, 422
-        when the log does not type them as a person."""
+    def erase_human(self, human: str, reason: str, actor: str, scope: Scope = "concerning") -> ErasureResult:
+        """Erase `human` everywhere, their names replaced by the mark in the texts kept that concern them (or, with
+        `scope` "store", in every text); 404 when neither the store nor the journal holds anything about them,
+        422 when the log does not type them as a person."""
         reason = _checked_reason(reason)
         with self._one_at_a_time:
             clock = _Clock()
-            found, done = self._found_and_journaled(human, reason, actor, clock)
+            found, redacting, done = self._found_and_journaled(human, reason, actor, scope, clock)
             receipt = done.receipt
             forgotten = Forgotten(frozenset(found), frozenset(_texts(done.removed)))
             logger.warning(
-                "erasure log_id=%s actor=%s kind=human resources=%d triples=%d",
-                receipt.log_id, actor, len(found), receipt.triples_removed,
+                "erasure log_id=%s actor=%s kind=human resources=%d triples=%d texts_redacted=%d",
+                receipt.log_id, actor, len(found), receipt.triples_removed, len(redacting),
             )  # fmt: skip
             rebuilt = self._forget(receipt, forgotten, clock)
-            mentions = self._mentions(_first_names(done.removed, human))
+            left = still_mentioned(self.store, redacting.names)
             clock.lap("checked")
-            return ErasureResult(receipt, done.posts, len(found), rebuilt, mentions, clock.laps)
+            return ErasureResult(receipt, done.posts, len(found), rebuilt, len(redacting), left, clock.laps)
 
     def erase_before(self, cutoff: str, reason: str, actor: str) -> ErasureResult | None:
         """Retention: every post recorded before `cutoff` loses its content; None when none had any."""
@@ -174,7 +184,9 @@ class ErasureService:
 
     # --- steps ---------------------------------------------------------------------------------------
 
-    def _found_and_journaled(self, human: str, reason: str, actor: str, clock: _Clock) -> tuple[list[str], ErasureDone]:
+    def _found_and_journaled(
+        self, human: str, reason: str, actor: str, scope: Scope, clock: _Clock
+    ) -> tuple[list[str], Mentions, ErasureDone]:
         """What the rule erases with `human`, found in the store as of an entry, and the erasure recorded with
         nothing recorded after that entry touching it: a post about them that arrived while the rule ran may
         hold a message of theirs the rule has not seen, so the rule runs again (Conflict when that keeps
@@ -189,8 +201,10 @@ class ErasureService:
                 clock.lap("found")
                 if human not in found:
                     found.append(human)  # the journal may still hold them (a post not applied, an older history)
+                redacting = self._mentions(human, found, scope)
+                selection = touching(found).either(redacting.selection())
                 erasure = Erasure(
-                    str(uuid.uuid4()), actor, "human", reason, touching(found), withhold=True, found_as_of=as_of,
+                    str(uuid.uuid4()), actor, "human", reason, selection, withhold=True, found_as_of=as_of,
                     resources=frozenset(found),
                 )  # fmt: skip
                 try:
@@ -199,7 +213,7 @@ class ErasureService:
                     logger.info("erasure of a person: %s; finding what to erase again (attempt %d)", outdated, attempt)
                     continue
             clock.lap("journaled")
-            return found, done
+            return found, redacting, done
         raise Conflict(
             f"Posts about <{human}> kept arriving while the erasure looked for what to erase ({FIND_ATTEMPTS} "
             "times): nothing was erased. Pause the robots that log this person, then erase again."
@@ -240,13 +254,12 @@ class ErasureService:
         threading.Thread(target=self._after_views, args=(receipt, forgotten), daemon=True).start()
         return False
 
-    def _mentions(self, names: set[str]) -> int:
-        """How many literals left in the store contain one of `names` (any case)."""
-        if not names:
-            return 0
-        tests = " || ".join(f"CONTAINS(LCASE(STR(?o)), {_string(name.lower())})" for name in sorted(names))
-        rows = select(self.store, f"SELECT (COUNT(*) AS ?n) WHERE {{ ?s ?p ?o FILTER (isLiteral(?o) && ({tests})) }}")
-        return int(rows.rows[0]["n"].value) if rows.rows else 0
+    def _mentions(self, human: str, resources: list[str], scope: Scope) -> Mentions:
+        """The texts kept that hold one of `human`'s names: those that concern them, or every one (`scope`
+        "store"); not those of the resources erased whole."""
+        found = mentions(self.store, self.mentions_rule, human, names_of(self.store, human), scope)
+        erased = {NamedNode(iri) for iri in resources}
+        return Mentions(found.names, frozenset(t for t in found.triples if t.subject not in erased))
 
     def _apply(self) -> None:
         """Apply what is pending in this thread where this process applies (a command-line erasure has no
@@ -282,17 +295,6 @@ def _checked_reason(reason: str) -> str:
 
 
 FIRST_NAME = "http://xmlns.com/foaf/0.1/firstName"
-
-
-def _first_names(lines: list[bytes], human: str) -> set[str]:
-    subject = f"<{human}> <{FIRST_NAME}> ".encode()
-    found = [line for line in lines if line.startswith(subject)]
-    return {q.object.value for q in parse(b"".join(x + b"\n" for x in found), RdfFormat.N_TRIPLES)} if found else set()
-
-
-def _string(text: str) -> str:
-    """A SPARQL string literal for `text` (N-Triples escaping: nothing in it can end the literal)."""
-    return str(Literal(text))
 
 
 def _texts(lines: list[bytes]) -> set[str]:

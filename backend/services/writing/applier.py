@@ -309,7 +309,9 @@ class Applier:
             self.store.clear(through=through, epoch=epoch)
             step = Applied(entries, [], cleared=True)
         elif entries[0].action == "erase":
-            removed = entries[0].removed
+            removed, added = entries[0].removed, entries[0].added
+            if added:  # a text with a name redacted, in place of the text: added first, a step the cursor is at
+                self.store.apply(list(parse(added, RdfFormat.N_TRIPLES)), through - 1, epoch)
             # Empty once applied: a store restored from before the erasure gets the posts already redacted.
             self.store.remove(list(parse(removed, RdfFormat.N_TRIPLES)) if removed else [], through, epoch)
             self.journal.erasure_applied(through, epoch)

@@ -17,7 +17,7 @@ import hashlib
 import zlib
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import AbstractContextManager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from segb_server.backend.services.clock import utc_iso
@@ -29,13 +29,28 @@ SCAN_BATCH = 500
 _ROWS_PER_STATEMENT = 400
 
 
+def _nothing(_line: bytes) -> bytes | None:
+    return None
+
+
 @dataclass(frozen=True)
 class LineSelection:
     """Which content lines an erasure removes: of the posts `posts(recorded_at)` admits, the lines `lines` picks
-    (a line as the content holds it: `<s> <p> o .`)."""
+    (a line as the content holds it: `<s> <p> o .`); `replace` gives the line put in place of one it removes (a
+    text with a name redacted), None for none."""
 
     posts: Callable[[str], bool]
     lines: Callable[[bytes], bool]
+    replace: Callable[[bytes], bytes | None] = _nothing
+
+    def either(self, other: LineSelection) -> LineSelection:
+        """The lines this selection or `other` picks (of the posts this one admits), each replaced by the first
+        selection that picks it."""
+        return LineSelection(
+            self.posts,
+            lambda line: self.lines(line) or other.lines(line),
+            lambda line: self.replace(line) if self.lines(line) else other.replace(line),
+        )
 
 
 def touching(resources: Iterable[str]) -> LineSelection:
@@ -92,70 +107,105 @@ def candidates(
     while True:
         with lock:
             rows = database.execute(
-                "SELECT sequence, recorded_at, content FROM receipts WHERE sequence > ? AND action = 'ingest' "
-                f"ORDER BY sequence LIMIT {SCAN_BATCH}",
+                "SELECT sequence, recorded_at, content, replacements FROM receipts WHERE sequence > ? "
+                f"AND action = 'ingest' ORDER BY sequence LIMIT {SCAN_BATCH}",
                 (position,),
             ).fetchall()
             if not rows:
                 head = database.execute("SELECT MAX(sequence) FROM receipts").fetchone()[0] or 0
                 return found, max(position, head)
-        for sequence, recorded_at, blob in rows:  # outside the lock
-            if blob and selection.posts(recorded_at) and any(map(selection.lines, lines_of(zlib.decompress(blob)))):
+        for sequence, recorded_at, blob, replaced in rows:  # outside the lock
+            if selection.posts(recorded_at) and any(
+                map(selection.lines, lines_of(_inflate(blob) + _inflate(replaced)))
+            ):
                 found.append(sequence)
         position = rows[-1][0]
 
 
 @dataclass(frozen=True)
 class ErasureDone:
-    """An erasure recorded: its receipt, the posts it redacted and the lines it removed (to find elsewhere)."""
+    """An erasure recorded: its receipt, the posts it redacted, the lines it removed (to find elsewhere) and the
+    lines it put in place of some of them."""
 
     receipt: Receipt
     posts: int
     removed: list[bytes]
+    added: list[bytes] = field(default_factory=list)
 
 
 @dataclass(frozen=True)
 class Redaction:
-    """What the transaction removed: the record's items and the removed lines (for the store)."""
+    """What the transaction removed: the record's items, the removed lines and the lines put in their place
+    (for the store)."""
 
     items: list[Redacted]
     removed: list[bytes]
+    added: list[bytes] = field(default_factory=list)
 
 
 def redact(
     connection: Database, erasure: Erasure, found: list[int], scanned_through: int, record_sequence: int
 ) -> Redaction:
     """Inside the write transaction: remove the selected lines from the posts found and from every post since
-    the scan, noting their digests beside each post; SelectionOutdated (the transaction is then rolled back) when
-    one of them was recorded after the selection was found."""
+    the scan, noting their digests beside each post, and keep the lines put in place of some of them beside the
+    post too (`replacements`: not received, so outside what its receipt covers; the erasure's record covers
+    them); SelectionOutdated (the transaction is then rolled back) when one of them was recorded after the
+    selection was found."""
     items: list[Redacted] = []
     removed: list[bytes] = []
-    for sequence, log_id, recorded_at, blob, redacted in _posts(connection, found, scanned_through):
-        if not blob or not erasure.selection.posts(recorded_at):
+    added: list[bytes] = []
+    selected = erasure.selection.lines
+    for sequence, log_id, recorded_at, blob, redacted, replaced in _posts(connection, found, scanned_through):
+        if not erasure.selection.posts(recorded_at):
             continue
-        lines = lines_of(zlib.decompress(blob))
-        gone = [line for line in lines if erasure.selection.lines(line)]
-        if not gone:
+        lines, replacements = lines_of(_inflate(blob)), lines_of(_inflate(replaced))
+        gone = [line for line in lines if selected(line)]
+        gone_replacements = [line for line in replacements if selected(line)]  # an earlier redaction's, redacted
+        if not gone and not gone_replacements:
             continue
         if erasure.found_as_of is not None and sequence > erasure.found_as_of:
             raise SelectionOutdated(sequence)
-        kept = b"".join(line + b"\n" for line in lines if not erasure.selection.lines(line))
+        kept_lines = [line for line in lines if not selected(line)]
+        staying = [line for line in replacements if not selected(line)]
+        swaps = [(line, new) for line in gone + gone_replacements if (new := erasure.selection.replace(line))]
+        fresh = list(dict.fromkeys(new for _, new in swaps if new not in staying and new not in kept_lines))
+        kept = b"".join(line + b"\n" for line in kept_lines)
+        now_replacing = b"".join(line + b"\n" for line in staying + fresh)
         digests = (redacted or b"") + b"".join(line_digest(line) for line in gone)
         connection.execute(
-            "UPDATE receipts SET content = ?, redacted_digests = ?, redacted_by = ? WHERE sequence = ?",
-            (zlib.compress(kept) if kept else b"", digests, record_sequence, sequence),
+            "UPDATE receipts SET content = ?, redacted_digests = ?, redacted_by = ?, replacements = ? "
+            "WHERE sequence = ?",
+            (_deflate(kept), digests, record_sequence, _deflate(now_replacing), sequence),
         )
-        items.append(Redacted(sequence, log_id, len(gone), hashlib.sha256(kept).hexdigest()))
-        removed += gone
-    return Redaction(items, removed)
+        items.append(
+            Redacted(
+                sequence, log_id, len(gone), hashlib.sha256(kept).hexdigest(),
+                hashlib.sha256(now_replacing).hexdigest() if now_replacing else None,
+                [(line_digest(old).hex(), line_digest(new).hex()) for old, new in swaps],
+            )
+        )  # fmt: skip
+        removed += gone + gone_replacements
+        added += fresh
+    return Redaction(items, removed, added)
 
 
 def _posts(connection: Database, found: list[int], scanned_through: int) -> Iterator[Any]:
-    columns = "SELECT sequence, log_id, recorded_at, content, redacted_digests FROM receipts WHERE action = 'ingest'"
+    columns = (
+        "SELECT sequence, log_id, recorded_at, content, redacted_digests, replacements FROM receipts "
+        "WHERE action = 'ingest'"
+    )
     for start in range(0, len(found), _ROWS_PER_STATEMENT):
         chunk = found[start : start + _ROWS_PER_STATEMENT]
         yield from connection.execute(f"{columns} AND sequence IN ({', '.join(['?'] * len(chunk))})", chunk)
     yield from connection.execute(f"{columns} AND sequence > ? ORDER BY sequence", (scanned_through,))
+
+
+def _inflate(blob: bytes | None) -> bytes:
+    return zlib.decompress(blob) if blob else b""
+
+
+def _deflate(document: bytes) -> bytes:
+    return zlib.compress(document) if document else b""
 
 
 def forget_digests(connection: Database, digests: list[bytes], withhold: bool) -> None:

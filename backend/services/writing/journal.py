@@ -37,7 +37,7 @@ from segb_server.backend.services.writing.erasure import (
     redact,
     resource_digest,
 )
-from segb_server.backend.services.writing.journal_reads import COLUMNS, JournalReads
+from segb_server.backend.services.writing.journal_reads import COLUMNS, JournalReads, pending_document
 from segb_server.backend.services.writing.journal_reads import JournalEntry as JournalEntry  # re-exported
 from segb_server.backend.services.writing.known_digests import KnownDigests
 from segb_server.backend.services.writing.receipts import (
@@ -84,6 +84,7 @@ ADDED_COLUMNS = {
     "triples_withheld": "INTEGER",
     "redacted_by": "BIGINT",
     "redacted_digests": "{blob}",
+    "replacements": "{blob}",  # lines an erasure put in place of removed ones (a text with a name redacted)
 }
 
 
@@ -104,6 +105,15 @@ class PostEntry:
     payload_sha256: str
     lines: list[str]
     digests: list[bytes]
+    # Triples the post received besides `lines`: re-sent ones the journal held at `epoch`, recognised before
+    # parsing (ingest/republish.py). Counted as received, recorded nowhere.
+    held: int = 0
+    epoch: int | None = None  # the journal's epoch `held` was known at: a post arriving at another one fails
+
+
+class EpochMoved(Exception):
+    """A clearing or an erasure came between a post's reading and its recording: what it counted as held may not
+    be (nothing of it was recorded)."""
 
 
 def triple_digest(line: str) -> bytes:
@@ -161,6 +171,8 @@ class Journal(JournalReads):
                 for post in posts:
                     connection.execute("SAVEPOINT post")
                     try:
+                        if post.epoch is not None and post.epoch != epoch:
+                            raise EpochMoved()
                         receipt, content, withheld = self._post_receipt(connection, post, sequence + 1, previous)
                         self._insert(connection, receipt, content)
                     except Exception as error:
@@ -190,6 +202,16 @@ class Journal(JournalReads):
             self._known, self._known_epoch = KnownDigests(), epoch
             self._remember_recorded([receipt.sequence])
         return receipt
+
+    def epoch(self) -> int:
+        """The journal's epoch: a new one with every clearing and erasure, in any process."""
+        with self._reads_lock:
+            return self._epoch(self._reads)
+
+    def holds(self, digests: Iterable[bytes]) -> bool:
+        """Whether the journal is known to hold each of these triples (from memory: False may mean forgotten)."""
+        known = self._known
+        return all(digest in known for digest in digests)
 
     def _remember_recorded(self, sequences: Iterable[int]) -> None:
         """Under the lock, once committed: these entries were recorded now (the oldest forgotten past a bound)."""
@@ -228,12 +250,12 @@ class Journal(JournalReads):
                 self._insert(connection, receipt, record.document())
                 connection.execute(
                     "INSERT INTO erasure_pending (sequence, content) VALUES (?, ?)",
-                    (receipt.sequence, zlib.compress(b"".join(line + b"\n" for line in redaction.removed))),
+                    (receipt.sequence, zlib.compress(pending_document(redaction.removed, redaction.added))),
                 )
             # The removed triples may come again (or, withheld, be told of again): the cache forgets them all.
             self._known, self._known_epoch = KnownDigests(), -1
             self._any_erased = self._any_erased or erasure.withhold
-        return ErasureDone(receipt, len(redaction.items), redaction.removed)
+        return ErasureDone(receipt, len(redaction.items), redaction.removed, redaction.added)
 
     def erasure_applied(self, through: int, epoch: int | None = None) -> None:
         """The store has applied every erasure through `through`: the lines they removed are kept no longer.
@@ -279,7 +301,7 @@ class Journal(JournalReads):
         content = ntriples_document(new_lines)
         receipt = Receipt(
             sequence, post.log_id, "ingest", post.user, post.claimed_user, utc_iso(), post.payload_sha256,
-            len(post.lines), len(new_lines), 0, hashlib.sha256(content).hexdigest(), previous, "",
+            len(post.lines) + post.held, len(new_lines), 0, hashlib.sha256(content).hexdigest(), previous, "",
             content_digest(content), len(withheld),
         )  # fmt: skip
         return _chained(receipt), content, withheld

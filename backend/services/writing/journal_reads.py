@@ -21,15 +21,31 @@ COLUMNS = ", ".join(f'"{name}"' for name in FIELD_NAMES)  # quoted: `user` is a 
 _ROWS_PER_VERIFY = 1000
 
 
+_ADDED = b"# added in their place\n"  # an N-Triples comment: no line of removed triples can read so
+
+
 @dataclass(frozen=True)
 class JournalEntry:
-    """One entry as the applier reads it: its place, what it did, its content (an N-Triples document; empty
-    for a clearing or an erasure), and for an erasure not yet applied to the store, the lines it removed."""
+    """One entry as the applier reads it: its place, what it did, its content (an N-Triples document: a post's
+    triples with the lines erasures put in place of removed ones; empty for a clearing or an erasure), and for an
+    erasure not yet applied to the store, the lines it removed and those it put in their place."""
 
     sequence: int
     action: str
     content: bytes
     removed: bytes = b""
+    added: bytes = b""
+
+
+def pending_document(removed: list[bytes], added: list[bytes]) -> bytes:
+    """What an erasure keeps for the store until it is applied: the lines to remove, then those to add."""
+    document = b"".join(line + b"\n" for line in removed)
+    return document + _ADDED + b"".join(line + b"\n" for line in added) if added else document
+
+
+def _pending(document: bytes) -> tuple[bytes, bytes]:
+    removed, _, added = document.partition(_ADDED)
+    return removed, added
 
 
 class JournalReads:
@@ -78,14 +94,19 @@ class JournalReads:
         """Up to `limit` entries after `sequence`, oldest first, content decompressed."""
         with self._reads_lock:
             rows = self._reads.execute(
-                "SELECT r.sequence, r.action, r.content, p.content FROM receipts r "
+                "SELECT r.sequence, r.action, r.content, r.replacements, p.content FROM receipts r "
                 "LEFT JOIN erasure_pending p ON p.sequence = r.sequence WHERE r.sequence > ? "
                 "ORDER BY r.sequence LIMIT ?",
                 (sequence, limit),
             ).fetchall()
         return [
-            JournalEntry(number, action, inflate(blob) if action == "ingest" else b"", inflate(removed))
-            for number, action, blob, removed in rows
+            JournalEntry(
+                number,
+                action,
+                inflate(blob) + inflate(replaced) if action == "ingest" else b"",
+                *_pending(inflate(pending)),
+            )
+            for number, action, blob, replaced, pending in rows
         ]
 
     def last_clearing(self) -> int:
@@ -156,7 +177,7 @@ class JournalReads:
         against the erasures' records); report the first receipt where the chain fails. Reads one consistent
         state, in batches (a whole journal's content would not fit in memory)."""
         check = ChainCheck()
-        columns = f"{COLUMNS}, content, redacted_digests" if deep else COLUMNS
+        columns = f"{COLUMNS}, content, redacted_digests, replacements" if deep else COLUMNS
         query = f"SELECT {columns} FROM receipts WHERE sequence > ? ORDER BY sequence LIMIT {_ROWS_PER_VERIFY}"
         with self._reads_lock, self._reads.reading():
             records = [
@@ -170,7 +191,9 @@ class JournalReads:
             while rows := self._reads.execute(query, (position,)).fetchall():
                 for row in rows:
                     receipt = Receipt(*row[: len(FIELD_NAMES)])
-                    fault = redactions.fault(receipt, inflate(row[-2]), row[-1] or b"") if deep else None
+                    fault = (
+                        redactions.fault(receipt, inflate(row[-3]), row[-2] or b"", inflate(row[-1])) if deep else None
+                    )
                     check.add(receipt, fault)
                 position = rows[-1][0]
         return Verification(check.count, check.first_broken, deep, len(records))

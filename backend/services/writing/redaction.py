@@ -7,6 +7,11 @@ give the digest the receipt covers: what remains provably was received, and noth
 own entry in the chain (its record) names, for each post it redacted, how many lines went and the SHA-256 of the
 content that remains, so removing more lines later, or restoring some, breaks the deep verification.
 
+An erasure of a person may put a line in place of one it removes: the same text with the person's names replaced
+by a mark. Such a line was not received, so it is kept beside the post (its `replacements`), not in its content;
+the record names, for each, the SHA-256 of the line removed and of the line put in its place, and the SHA-256 of
+all the post's replacements, so they too are checked.
+
 A kept digest confirms a guess of the exact line (subject, predicate and text) and tells nothing else.
 """
 
@@ -16,6 +21,7 @@ import hashlib
 import json
 from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field
+from typing import Any
 
 from segb_server.backend.services.writing.receipts import BrokenReason, Receipt
 
@@ -45,12 +51,26 @@ def canonical_json(value: object) -> bytes:
 
 @dataclass(frozen=True)
 class Redacted:
-    """What an erasure did to one post: the lines it removed, and the SHA-256 of the content that remains."""
+    """What an erasure did to one post: the lines it removed, and the SHA-256 of the content that remains; when
+    lines stand in for removed ones, the SHA-256 of them all and, per line it replaced, the SHA-256 of the line
+    removed and of the one put in its place (a pair each)."""
 
     sequence: int
     log_id: str
     triples_removed: int
     remaining_sha256: str
+    replacements_sha256: str | None = None
+    replaced: list[tuple[str, str]] = field(default_factory=list)
+
+    def document(self) -> dict[str, object]:
+        """As the record holds it: without the replacements' fields when there are none, as erasures wrote it
+        before they replaced lines (a record's hash is taken over this)."""
+        found = asdict(self)
+        if self.replacements_sha256 is None and not self.replaced:
+            del found["replacements_sha256"], found["replaced"]
+        else:
+            found["replaced"] = [list(pair) for pair in self.replaced]
+        return found
 
 
 @dataclass(frozen=True)
@@ -65,23 +85,29 @@ class RedactionRecord:
 
     def document(self) -> bytes:
         return canonical_json(
-            {"kind": self.kind, "reason": self.reason, "receipts": [asdict(r) for r in self.receipts]}
+            {"kind": self.kind, "reason": self.reason, "receipts": [item.document() for item in self.receipts]}
         )
 
     @classmethod
     def parse(cls, document: bytes) -> RedactionRecord:
         data = json.loads(document)
-        return cls(data["kind"], data["reason"], [Redacted(**item) for item in data["receipts"]])
+        return cls(data["kind"], data["reason"], [_redacted(item) for item in data["receipts"]])
 
     @property
     def triples_removed(self) -> int:
         return sum(item.triples_removed for item in self.receipts)
 
 
+def _redacted(item: dict[str, Any]) -> Redacted:
+    pairs = item.get("replaced") or []
+    return Redacted(**{**item, "replaced": [(old, new) for old, new in pairs]})
+
+
 @dataclass
 class _State:
     removed: int = 0
     remaining_sha256: str = ""
+    replacements_sha256: str | None = None
     records: list[int] = field(default_factory=list)
 
 
@@ -97,20 +123,26 @@ class RedactionCheck:
                 state = self._by_post.setdefault(item.sequence, _State())
                 state.removed += item.triples_removed
                 state.remaining_sha256 = item.remaining_sha256  # the newest erasure says what is left
+                state.replacements_sha256 = item.replacements_sha256
                 state.records.append(sequence)
 
-    def fault(self, receipt: Receipt, content: bytes, redacted: bytes) -> BrokenReason | None:
-        """Whether the content kept for `receipt` (and the digests of lines erased from it) is what its receipt
-        and the erasure records say; None when it is."""
+    def fault(
+        self, receipt: Receipt, content: bytes, redacted: bytes, replacements: bytes = b""
+    ) -> BrokenReason | None:
+        """Whether the content kept for `receipt` (the digests of lines erased from it, and the lines put in
+        place of some) is what its receipt and the erasure records say; None when it is."""
         state = self._by_post.get(receipt.sequence)
         content_sha256 = hashlib.sha256(content).hexdigest()
+        replacements_sha256 = hashlib.sha256(replacements).hexdigest() if replacements else None
         if state is None:
-            if redacted:
-                return "redaction does not match"  # lines went without an erasure's record
+            if redacted or replacements:
+                return "redaction does not match"  # lines went, or came, without an erasure's record
             if receipt.content_sha256 not in (None, content_sha256):
                 return "content does not match"
         else:
             if content_sha256 != state.remaining_sha256 or len(redacted) != state.removed * DIGEST_BYTES:
+                return "redaction does not match"
+            if replacements_sha256 != state.replacements_sha256:
                 return "redaction does not match"
             if any(record <= receipt.sequence for record in state.records):
                 return "redaction does not match"  # an erasure only ever redacts posts before it
