@@ -105,6 +105,12 @@ def _parser() -> argparse.ArgumentParser:
     )
     export.add_argument("--human", metavar="IRI", help="only what is held about this person (GDPR Art. 15)")
     export.add_argument("--output", "-o", type=Path, help="file to write (default: standard output)")
+    export.add_argument(
+        "--otlp", action="store_true", help="send what robots did as traces to OTEL_EXPORTER_OTLP_ENDPOINT instead"
+    )
+    export.add_argument("--robot", metavar="IRI", help="with --otlp: only what this robot did")
+    export.add_argument("--since", metavar="TIME", help="with --otlp: from this time (ISO 8601 with a time zone)")
+    export.add_argument("--until", metavar="TIME", help="with --otlp: up to this time")
     export.set_defaults(handler=_export)
 
     token = commands.add_parser(
@@ -208,6 +214,7 @@ def _serve(args: argparse.Namespace) -> int:
     names = ("host", "api_port", "ui_port", "backend_url", "api_workers")
     settings = _settings(args, *names)
     from segb_server.backend.listening import CannotListen
+    from segb_server.backend.services.observability.worker_metrics import metrics_shared_by_workers
     from segb_server.backend.serving import (
         DataDirUnwritable,
         WorkersRefused,
@@ -243,7 +250,8 @@ def _serve(args: argparse.Namespace) -> int:
     try:
         if settings.api_workers > 1 and args.only != "ui":
             hand_down({name: getattr(args, name) for name in passed if getattr(args, name, None)})
-            serve_api_workers(settings, with_ui=args.only is None, listening=listening)
+            with metrics_shared_by_workers():  # each worker counts in its own files there; a scrape sums them
+                serve_api_workers(settings, with_ui=args.only is None, listening=listening)
         else:
             api, ui = args.only in (None, "api"), args.only in (None, "ui")
             serve(settings, api=api, ui=ui, demo=args.demo, listening=listening)
@@ -473,6 +481,8 @@ def _export(args: argparse.Namespace) -> int:
     from segb_server.backend.services.graph.export import stream_graph
     from segb_server.backend.store.factory import open_store
 
+    if args.otlp:
+        return _export_otlp(args)
     if args.human is not None:
         args.format = args.format or "html"
         return cli_people.export_person(args, _settings(args), _services)
@@ -492,6 +502,27 @@ def _export(args: argparse.Namespace) -> int:
                     output.write(chunk)
     finally:
         store.close()
+    return 0
+
+
+def _export_otlp(args: argparse.Namespace) -> int:
+    from segb_server.backend.services.errors import InvalidParameter
+    from segb_server.backend.services.observability.otlp import ExportFailed
+    from segb_server.backend.services.observability.trace_export import NoEndpoint, export_window
+    from segb_server.backend.services.sparql.catalog import Catalog
+    from segb_server.backend.store.factory import open_store
+
+    settings = _settings(args)
+    filters = {"robot": args.robot, "since": args.since, "until": args.until}
+    store = open_store(settings)
+    try:
+        sent = export_window(store, Catalog(settings.sparql_dir), settings.otel_exporter_otlp_endpoint, filters,
+                             with_text=settings.trace_message_text)  # fmt: skip
+    except (InvalidParameter, NoEndpoint, ExportFailed) as refused:
+        return _fail(str(refused))
+    finally:
+        store.close()
+    print(f"sent {sent} spans to {settings.otel_exporter_otlp_endpoint}", file=sys.stderr)
     return 0
 
 

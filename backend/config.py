@@ -201,6 +201,27 @@ class Settings(BaseSettings):
     )
     server_log_backups: int = Field(3, ge=0, description="Rotated server log files kept (server.jsonl.1, .2, …).")
 
+    # --- watching from operators' tools ----------------------------------------------------------------
+    metrics_token: str = Field(
+        "", description="A bearer token GET /metrics accepts besides an auditor's JWT (for a Prometheus scraper)."
+    )
+    webhook_urls: str = Field(
+        "", description="Comma-separated URLs told of new and resolved findings (POST, JSON, signed); empty = none."
+    )
+    webhook_secret: str = Field("", description="Key of the webhooks' HMAC-SHA256 signature (X-SEGB-Signature).")
+    webhook_min_severity: Literal["violation", "warning", "info"] = Field(
+        "warning", description="Least serious finding a webhook is told of (violation > warning > info)."
+    )
+    otel_exporter_otlp_endpoint: str = Field(
+        "",
+        validation_alias="OTEL_EXPORTER_OTLP_ENDPOINT",
+        description="OTLP/HTTP endpoint that live traces of what robots did are sent to (OpenTelemetry's own "
+        "variable; its other OTEL_* settings apply too); empty = no live traces.",
+    )
+    trace_message_text: bool = Field(
+        False, description="Put a message's text in its span (by default only its length is sent)."
+    )
+
     @field_validator("graph_uri", "virtuoso_endpoint", "shared_context_namespace")
     @classmethod
     def _absolute_http_iri(cls, value: str) -> str:
@@ -235,6 +256,21 @@ class Settings(BaseSettings):
                 f"SECRET_KEY must be at least {MIN_SECRET_LENGTH} characters "
                 "(set ALLOW_WEAK_SECRET=true to accept a weaker one)"
             )
+        return self
+
+    @model_validator(mode="after")
+    def _webhooks_signed(self) -> Settings:
+        if self.webhook_urls.strip() and len(self.webhook_secret) < MIN_SECRET_LENGTH:
+            raise ValueError(f"WEBHOOK_URLS needs a WEBHOOK_SECRET of at least {MIN_SECRET_LENGTH} characters")
+        for url in self.webhook_url_list:
+            if not url.startswith(("http://", "https://")):
+                raise ValueError(f"WEBHOOK_URLS: {url!r} is not an http(s) URL")
+        return self
+
+    @model_validator(mode="after")
+    def _metrics_token_strength(self) -> Settings:
+        if self.metrics_token and len(self.metrics_token) < MIN_SECRET_LENGTH and not self.allow_weak_secret:
+            raise ValueError(f"METRICS_TOKEN must be at least {MIN_SECRET_LENGTH} characters")
         return self
 
     @model_validator(mode="after")
@@ -292,6 +328,10 @@ class Settings(BaseSettings):
         if self.server_log_file:
             return Path(self.server_log_file)
         return None if self.store == "memory" else self.data_dir / "logs" / "server.jsonl"
+
+    @property
+    def webhook_url_list(self) -> list[str]:
+        return [url.strip() for url in self.webhook_urls.split(",") if url.strip()]
 
     @property
     def cors_origin_list(self) -> list[str]:

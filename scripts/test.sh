@@ -41,6 +41,8 @@ command -v chromium >/dev/null 2>&1 || missing+=(chromium fonts-dejavu-core)
 [ -x /usr/bin/docker-compose ] || missing+=(docker-compose)
 command -v curl >/dev/null 2>&1 || missing+=(curl)
 command -v wget >/dev/null 2>&1 || missing+=(wget)
+# The metrics' tests scrape the server with a real Prometheus.
+command -v prometheus >/dev/null 2>&1 || missing+=(prometheus)
 # Debian keeps these outside PATH (/usr/lib/postgresql/<version>/bin, /usr/sbin); the fixtures look there.
 command -v initdb >/dev/null 2>&1 || compgen -G "/usr/lib/postgresql/*/bin/initdb" >/dev/null || missing+=(postgresql)
 command -v nginx >/dev/null 2>&1 || [ -x /usr/sbin/nginx ] || missing+=(nginx)

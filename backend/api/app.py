@@ -14,6 +14,7 @@ from segb_server.backend import __version__
 from segb_server.backend.api.docs import install_docs
 from segb_server.backend.api.errors import document_error_shape, install_error_handlers
 from segb_server.backend.api.middleware import HeadAsGet, SecurityHeaders, UnexpectedErrors
+from segb_server.backend.api.observed import ObservedRequests
 from segb_server.backend.api.request_context import RequestContext
 from segb_server.backend.api.routes import (
     auth,
@@ -26,6 +27,7 @@ from segb_server.backend.api.routes import (
     ledger,
     live,
     logs,
+    metrics,
     people,
     reports,
     shared_context,
@@ -34,10 +36,12 @@ from segb_server.backend.api.routes import (
     timeline,
     validate,
     vocabulary,
+    webhooks,
 )
 from segb_server.backend.config import Settings
 from segb_server.backend.demo import load_demo
 from segb_server.backend.services.container import REQUIRED_QUERIES, build_services
+from segb_server.backend.services.observability.watching import Watching
 from segb_server.backend.services.ops.server_log import ServerLog
 from segb_server.backend.services.ops.store_monitor import StoreMonitor
 from segb_server.backend.services.sparql.catalog import Catalog
@@ -62,6 +66,7 @@ decide and say — as RDF, keeps it in a triple store, and serves the audits bui
 
 ROUTERS = [
     health.router,
+    metrics.router,
     auth.router,
     ingest.router,
     validate.router,
@@ -76,6 +81,7 @@ ROUTERS = [
     people.router,
     shared_context.router,
     vocabulary.router,
+    webhooks.router,
 ]
 
 
@@ -102,6 +108,7 @@ def create_app(
         app.state.services = build_services(settings, active_store, server_log=server_log, catalog=catalog, role=role)
         if role is Role.API:
             app.state.services.writes.views_elsewhere = ViewsStatus(settings.data_dir)
+        app.state.watching = watching = Watching(app.state.services)  # metrics, webhooks, traces for their tools
         # The embedded store is read by the views' process through this one (RocksDB lets one process open it).
         channel = (
             StoreChannel(active_store, niceness=CHANNEL_NICENESS)
@@ -128,6 +135,7 @@ def create_app(
         finally:
             if views is not None:  # it reads the store through this process: it stops first
                 await anyio.to_thread.run_sync(views.stop)
+            watching.close()
             app.state.services.close()
             if channel is not None:
                 channel.close()
@@ -150,6 +158,7 @@ def create_app(
     # Added innermost first: a 500 made by UnexpectedErrors still passes CORS (so a browser sees its status),
     # the security headers and the request id.
     app.add_middleware(UnexpectedErrors)
+    app.add_middleware(ObservedRequests)  # outside the 500s: they are counted too
     if settings.cors_origin_list:
         app.add_middleware(
             CORSMiddleware,

@@ -26,6 +26,7 @@ ANY_TOKEN = "any"
 REQUIRED_ROLE: dict[tuple[str, str], str | None] = {
     ("GET", "/healthz/live"): PUBLIC,
     ("GET", "/healthz/ready"): PUBLIC,
+    ("GET", "/metrics"): "auditor",  # or the bearer of METRICS_TOKEN (tests/observability)
     ("GET", "/auth/mode"): PUBLIC,
     ("GET", "/auth/whoami"): ANY_TOKEN,
     ("POST", "/ttl"): "logger",
@@ -64,6 +65,8 @@ REQUIRED_ROLE: dict[tuple[str, str], str | None] = {
     ("GET", "/humans/{iri}/export"): "admin",
     ("GET", "/evidence"): "auditor",
     ("GET", "/.well-known/segb-evidence-key"): PUBLIC,
+    ("GET", "/webhooks/deliveries"): "admin",
+    ("POST", "/webhooks/deliveries/{delivery_id}/redeliver"): "admin",
 }
 # A well-formed request for each route, so an authorised caller is served (a 404 from /explain once the
 # graph has been cleared is an answer, not a refusal).

@@ -1,0 +1,1 @@
+"""What the server tells operators' tools: Prometheus metrics, webhooks for findings, OpenTelemetry traces."""
