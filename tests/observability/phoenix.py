@@ -8,6 +8,7 @@ working directory of its own, its telemetry and every download off.
 
 from __future__ import annotations
 
+import atexit
 import fcntl
 import hashlib
 import os
@@ -27,10 +28,26 @@ LOCK = Path(__file__).resolve().parents[1] / "phoenix" / "requirements.lock"
 INSTALL_SECONDS = 900
 
 
+_RUN_CACHE: list[Path] = []
+
+
+def _cache_root() -> Path:
+    """Where Phoenix's virtual environment goes: SEGB_PHOENIX_CACHE when a developer names a folder to keep it in
+    between runs; else a temporary folder of this test process, removed when it ends (the machine left as found)."""
+    if named := os.environ.get("SEGB_PHOENIX_CACHE"):
+        return Path(named)
+    if not _RUN_CACHE:
+        _RUN_CACHE.append(Path(tempfile.mkdtemp(prefix="segb-phoenix-cache-")))
+        atexit.register(shutil.rmtree, _RUN_CACHE[0], ignore_errors=True)
+    return _RUN_CACHE[0]
+
+
 def environment() -> Path:
-    """Phoenix's virtual environment, installed from its lock unless a run before did."""
+    """Phoenix's virtual environment, installed from its lock unless this run (or the cache named) has it."""
     digest = hashlib.sha256(LOCK.read_bytes()).hexdigest()[:16]
-    home = Path(tempfile.gettempdir()) / f"segb-phoenix-{digest}"
+    root = _cache_root()
+    root.mkdir(parents=True, exist_ok=True)
+    home = root / f"segb-phoenix-{digest}"
     done = home / "installed"
     with open(f"{home}.lock", "w") as guard:  # another test process may be installing it
         fcntl.flock(guard, fcntl.LOCK_EX)
