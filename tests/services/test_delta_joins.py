@@ -16,7 +16,7 @@ from pyoxigraph import Quad, RdfFormat, Store, parse
 
 from segb_server.backend.services.views.delta import Delta
 from segb_server.backend.services.views.kept_queries.delta_joins import Alias, DeltaJoin, Step
-from segb_server.backend.services.views.kept_queries.plan import Pattern
+from segb_server.backend.services.views.kept_queries.plan_parts import Pattern
 from segb_server.backend.store.terms import term_text
 
 EX = "https://example.org/"

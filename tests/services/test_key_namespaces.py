@@ -8,9 +8,10 @@ import random
 
 from pyoxigraph import BlankNode, Literal, NamedNode
 
+from segb_server.backend.services.views.kept_queries.aggregate_values import _decoded
 from segb_server.backend.services.views.kept_queries.encoding import DATE_TIME, instant_micros, sort_key
 from segb_server.backend.services.views.kept_queries.key_namespaces import Namespaces, order_digits
-from segb_server.backend.services.views.kept_queries.rows import _decoded, head_of
+from segb_server.backend.services.views.kept_queries.layout import head_of
 from segb_server.backend.store.base import Term
 
 ROBOTS = "https://example.org/segb/robots/"

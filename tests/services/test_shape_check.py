@@ -18,7 +18,7 @@ from segb_server.backend.config import PACKAGE_ROOT
 from segb_server.backend.services.rules.catalog import Rule, RuleCatalog
 from segb_server.backend.services.rules.shape_check import as_rdflib
 from segb_server.backend.services.rules.shapes import ShapeRule
-from segb_server.backend.services.views.shape_view import check_rules
+from segb_server.backend.services.views.shape_checks import check_rules
 from segb_server.backend.store.base import select
 from segb_server.backend.store.oxigraph import OxigraphStore
 

@@ -1,4 +1,4 @@
-"""A plain report's filter indexes hold each row's head (rows.py, `head_of`): a page chosen by heads holds the
+"""A plain report's filter indexes hold each row's head (layout.py, `head_of`): a page chosen by heads holds the
 first rows of the whole order only if heads never sort against their keys."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import random
 from pyoxigraph import BlankNode, Literal, NamedNode
 
 from segb_server.backend.services.views.kept_queries.encoding import DATE_TIME, SEPARATOR, sort_key
-from segb_server.backend.services.views.kept_queries.rows import head_of
+from segb_server.backend.services.views.kept_queries.layout import head_of
 from segb_server.backend.store.base import Term
 
 IRIS = ["https://e.org/a", "https://e.org/ab", "https://e.org/b", "https://e.org/robot/ari", "https://e.org/robot"]

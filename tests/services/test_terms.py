@@ -9,7 +9,8 @@ from pathlib import Path
 import pytest
 
 from segb_server.backend.services.views import terms
-from segb_server.backend.services.views.kept_queries.rows import TERMS, KeptRows
+from segb_server.backend.services.views.kept_queries.rows import KeptRows
+from segb_server.backend.services.views.kept_queries.rows_database import TERMS
 from segb_server.backend.services.views.terms import TermIds, iri_digest, iri_hash
 
 IRIS = [f"https://example.org/robots/ari/visitor_{index}" for index in range(1_000)]

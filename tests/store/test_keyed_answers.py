@@ -17,7 +17,8 @@ from pyoxigraph import Quad, RdfFormat, parse
 from segb_server.backend.config import PACKAGE_ROOT
 from segb_server.backend.services.rules.catalog import RuleCatalog
 from segb_server.backend.services.sparql.catalog import Catalog, CatalogQuery
-from segb_server.backend.services.views.kept_queries.plan import Unsupported, plan_report
+from segb_server.backend.services.views.kept_queries.plan import plan_report
+from segb_server.backend.services.views.kept_queries.plan_parts import Unsupported
 from segb_server.backend.services.views.kept_queries.projection import kept_text
 from segb_server.backend.store.base import Store, select
 from segb_server.backend.store.terms import bind_texts, term_text

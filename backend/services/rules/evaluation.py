@@ -7,7 +7,7 @@ from segb_server.backend.services.rules.catalog import RuleCatalog
 from segb_server.backend.services.rules.findings import Finding, finding, order_key
 from segb_server.backend.services.rules.service import FindingsService
 from segb_server.backend.services.rules.shapes import ShapeRule
-from segb_server.backend.services.views.shape_view import check_shapes
+from segb_server.backend.services.views.shape_checks import check_shapes
 from segb_server.backend.store.base import Store
 
 

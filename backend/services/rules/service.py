@@ -26,7 +26,8 @@ from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFI
 from segb_server.backend.services.values import JsonValue, json_value
 from segb_server.backend.services.views.kept_queries.encoding import instant, numeric_value
 from segb_server.backend.services.views.kept_queries.projection import KeptQueries
-from segb_server.backend.services.views.shape_view import ShapeFindings, check_shapes
+from segb_server.backend.services.views.shape_checks import check_shapes
+from segb_server.backend.services.views.shape_view import ShapeFindings
 from segb_server.backend.services.views.signal import ChangeSignal
 from segb_server.backend.store.base import Store, Term, select
 from segb_server.backend.store.terms import bind_values, term_text

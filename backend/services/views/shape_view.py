@@ -5,36 +5,26 @@ the batch's new triples name (as subject or object) that are targets of a shape 
 findings replaced. A shape looks only at a focus node's own statements (see shapes.py), and the triples that
 can change those name the node as their subject, so this keeps exactly what a full check would find. Stored in
 its own SQLite file, read page by page per rule in time order (keyset paging), filtered by robot and time.
+The checking itself is `shape_checks.py`.
 """
 
 from __future__ import annotations
 
-import base64
 import hashlib
-import json
 import logging
 from collections.abc import Iterable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import orjson
-from pyoxigraph import Literal, NamedNode
 
-from segb_server.backend.services.errors import InvalidParameter
-from segb_server.backend.services.rules.shapes import (
-    Context,
-    NodeStatements,
-    ShapeResult,
-    ShapeRule,
-    generated_by_newly_performed,
-    read_predicates,
-    robots_of_generating,
-    statements,
-)
-from segb_server.backend.services.values import JsonValue, json_value
+from segb_server.backend.services.rules.shapes import ShapeRule, generated_by_newly_performed
+from segb_server.backend.services.values import JsonValue
+from segb_server.backend.services.views.cursors import cursor_of, findings_cursor
 from segb_server.backend.services.views.database import ViewDatabase
 from segb_server.backend.services.views.delta import Delta
-from segb_server.backend.services.views.kept_queries.encoding import instant, sort_key
+from segb_server.backend.services.views.kept_queries.encoding import instant
+from segb_server.backend.services.views.shape_checks import Found, check_rules, check_shapes
 from segb_server.backend.services.views.signal import ChangeSignal
 from segb_server.backend.store.base import Store, Term
 
@@ -53,7 +43,6 @@ SCHEMA = [
 ]
 NAME = "shape-findings"
 Record = tuple[str, str | None, str | None, str]  # sort key, time, robot, the finding as JSON
-Found = tuple[str, str | None, str | None, dict[str, JsonValue]]  # sort key, time, robot, the finding
 
 
 @dataclass(frozen=True)
@@ -197,7 +186,7 @@ class ShapeFindings:
             arguments.append(instant(until) or "")
         if after is not None:
             where.append("(ord, unit, n) > (?, ?, ?)")
-            arguments += _cursor(after)
+            arguments += findings_cursor(after)
         found = (
             self.db.reader()
             .execute(
@@ -209,7 +198,7 @@ class ShapeFindings:
         )
         kept = found[:limit]
         has_more = len(found) > limit
-        last = _cursor_of(*kept[-1][:3]) if kept and has_more else None
+        last = cursor_of(*kept[-1][:3]) if kept and has_more else None
         return ShapePage([orjson.loads(row[3]) for row in kept], has_more, last)
 
     def count(self, rule_id: str, robot: str | None, since: Term | None, until: Term | None) -> int:
@@ -256,94 +245,3 @@ def _named_nodes(delta: Delta) -> set[str]:
             if fact.object_text.startswith("<"):
                 named.add(fact.object_text)
     return named
-
-
-def check_shapes(rule: ShapeRule, store: Store, named: set[str] | None) -> tuple[set[str], dict[str, list[Found]]]:
-    """Check a SHACL rule on the targets among `named` (None: every target): the nodes checked, and each one's
-    findings as (sort key, time, robot, row)."""
-    return check_rules([rule], store, named)[rule.rule.id]
-
-
-def check_rules(
-    rules: list[ShapeRule], store: Store, named: set[str] | None, delta: Delta | None = None
-) -> dict[str, tuple[set[str], dict[str, list[Found]]]]:
-    """`check_shapes` for several rules, their targets' statements read once for all: every candidate's (the
-    targets most shapes declare — a type, a predicate the node is the subject of — are read off them), or, for a
-    full check (`named` None), the targets the store answers for. `delta`: the batch naming the candidates,
-    whose triples are all there is about its fresh ones."""
-    if named is not None:
-        candidates = sorted(node for node in named if node.startswith("<"))
-        predicates = _union([rule.statement_predicates() for rule in rules])
-        data, contexts = statements(store, candidates, predicates, delta) if candidates else (NodeStatements(), {})
-        targets = {rule.rule.id: rule.targets_among(store, candidates, data, delta) for rule in rules}
-    else:
-        targets = {rule.rule.id: rule.targets(store, None) for rule in rules}
-        nodes = sorted({node for found in targets.values() for nodes in found.values() for node in nodes})
-        data, contexts = statements(store, nodes, read_predicates(rules)) if nodes else (NodeStatements(), {})
-    validated: dict[str, tuple[set[str], list[ShapeResult]]] = {}
-    for rule in rules:
-        units = set().union(*targets[rule.rule.id].values()) if targets[rule.rule.id] else set()
-        validated[rule.rule.id] = (units, rule.validate(data, targets[rule.rule.id]) if units else [])
-    # A finding about what an activity generated, saying no robot of its own, is the robot's of that activity:
-    # looked up for the nodes found at fault only.
-    generating = {
-        context.generated_by
-        for _, results in validated.values()
-        for result in results
-        if (context := contexts.get(result.focus)) is not None and context.robot is None and context.generated_by
-    }
-    robots = robots_of_generating(store, generating, delta) if generating else {}
-    checked: dict[str, tuple[set[str], dict[str, list[Found]]]] = {}
-    for rule in rules:
-        units, results = validated[rule.rule.id]
-        found: dict[str, list[Found]] = {}
-        for result in results:
-            context = contexts.get(result.focus, Context())
-            if context.robot is None and context.generated_by in robots:
-                context = replace(context, robot=robots[context.generated_by])
-            found.setdefault(result.focus, []).append(_record(result, context))
-        checked[rule.rule.id] = (units, found)
-    return checked
-
-
-def _union(sets: list[frozenset[str] | None]) -> frozenset[str] | None:
-    """Every predicate any of them reads (None: one of them reads every statement)."""
-    if any(found is None for found in sets):
-        return None
-    return frozenset().union(*(found for found in sets if found is not None))
-
-
-def _record(result: ShapeResult, context: Context) -> Found:
-    """One finding: sorted by its focus node's time, then the node; its time and robot as filters compare them."""
-    time, robot = context.time, context.robot
-    row: dict[str, JsonValue] = {
-        "time": json_value(time),  # type: ignore[arg-type]
-        "focus": result.focus[1:-1],
-        "robot": json_value(robot),  # type: ignore[arg-type]
-        "human": None,
-        "message": result.message,
-        "path": result.path,
-        "value": result.value,
-    }
-    order = sort_key([time, _iri(result.focus)])  # type: ignore[list-item]
-    moment = instant(time) if isinstance(time, Literal) else None
-    robot_text = robot.value if isinstance(robot, NamedNode) else None
-    return order, moment, robot_text, row
-
-
-def _iri(text: str) -> Term:
-    return NamedNode(text[1:-1])
-
-
-def _cursor(after: str) -> list[object]:
-    try:
-        decoded = json.loads(base64.urlsafe_b64decode(after.encode("ascii") + b"=" * (-len(after) % 4)))
-    except (ValueError, UnicodeError):
-        decoded = None
-    if not (isinstance(decoded, list) and len(decoded) == 3 and isinstance(decoded[2], int)):
-        raise InvalidParameter("after", "not a cursor this server made: pass the `next` of the previous page")
-    return decoded
-
-
-def _cursor_of(order: str, unit: str, index: int) -> str:
-    return base64.urlsafe_b64encode(json.dumps([order, unit, index]).encode()).decode("ascii").rstrip("=")

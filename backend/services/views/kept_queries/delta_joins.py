@@ -30,7 +30,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 from segb_server.backend.services.views.delta import Delta, Fact
-from segb_server.backend.services.views.kept_queries.plan import Pattern
+from segb_server.backend.services.views.kept_queries.plan_parts import Pattern
 
 
 @dataclass(frozen=True)

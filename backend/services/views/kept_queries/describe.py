@@ -9,8 +9,9 @@ import re
 from segb_server.backend.services.sparql.catalog import CatalogQuery
 from segb_server.backend.services.views.kept_queries.facets import facet_patterns
 from segb_server.backend.services.views.kept_queries.keys import chains
-from segb_server.backend.services.views.kept_queries.plan import Pattern, Unsupported, declared_key, plan_report
-from segb_server.backend.services.views.kept_queries.rows import Layout
+from segb_server.backend.services.views.kept_queries.layout import Layout
+from segb_server.backend.services.views.kept_queries.plan import declared_key, plan_report
+from segb_server.backend.services.views.kept_queries.plan_parts import Pattern, Unsupported
 from segb_server.backend.vocabulary import compact
 
 

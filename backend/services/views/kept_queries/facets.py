@@ -16,7 +16,8 @@ from segb_server.backend.services.views.kept_queries.keys import (
     PatternMatch,
     narrowing,
 )
-from segb_server.backend.services.views.kept_queries.plan import FacetFilter, Pattern, ReportPlan
+from segb_server.backend.services.views.kept_queries.plan import ReportPlan
+from segb_server.backend.services.views.kept_queries.plan_parts import FacetFilter, Pattern
 from segb_server.backend.store.base import Store, select
 from segb_server.backend.store.terms import term_text
 

@@ -16,7 +16,8 @@ from functools import cached_property
 
 from segb_server.backend.services.views.delta import Delta, Fact
 from segb_server.backend.services.views.kept_queries.delta_joins import Alias, DeltaJoin, Step
-from segb_server.backend.services.views.kept_queries.plan import Pattern, ReportPlan, Unsupported
+from segb_server.backend.services.views.kept_queries.plan import ReportPlan
+from segb_server.backend.services.views.kept_queries.plan_parts import Pattern, Unsupported
 from segb_server.backend.store.base import Store, select
 from segb_server.backend.store.terms import term_text
 

@@ -21,13 +21,11 @@ from segb_server.backend.services.views.delta import Delta
 from segb_server.backend.services.views.kept_queries.delta_joins import DeltaJoin
 from segb_server.backend.services.views.kept_queries.facets import FacetPairs, facet_patterns, facet_table
 from segb_server.backend.services.views.kept_queries.keys import VALUES_PER_QUERY, KeyFinder
-from segb_server.backend.services.views.kept_queries.plan import (
-    FacetFilter,
-    ReportPlan,
-    Unsupported,
-    plan_report,
-)
-from segb_server.backend.services.views.kept_queries.rows import KeptRows, Layout, Page, Row
+from segb_server.backend.services.views.kept_queries.layout import Layout, Row
+from segb_server.backend.services.views.kept_queries.pages import Page
+from segb_server.backend.services.views.kept_queries.plan import ReportPlan, plan_report
+from segb_server.backend.services.views.kept_queries.plan_parts import FacetFilter, Unsupported
+from segb_server.backend.services.views.kept_queries.rows import KeptRows
 from segb_server.backend.store.base import Store, Term, select
 from segb_server.backend.store.sparql_text import code_only
 from segb_server.backend.store.terms import bind_texts, bind_values, term_text
