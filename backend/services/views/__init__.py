@@ -1,7 +1,9 @@
 """Everything that keeps the views current from the journal's stream of new triples, in one package.
 
-- `keeper.py`: the views' keeper (which steps to take next, erasures and clearings) and `lanes.py`, one lane per
-  view, so that each view advances at its own pace; `preparing.py`: building and catching views up at start.
+- `keeper.py`: the views' keeper: batches of the applied steps (`steps.py`) handed to every view, erasures and
+  clearings; `lanes.py`: one lane per view, so that each view advances at its own pace (`lane_hosting.py`: what a
+  lane asks of the keeper); `progress.py`: how far each view is; `preparing.py`: builds, catch-ups, views set
+  aside; `view.py`: what a kept view is.
 - `delta.py`: a batch's new triples, indexed once; `seen_terms.py`: which of its IRIs the store never held.
 - `database.py`, `terms.py`, `signal.py`, `cursors.py`: a view's SQLite file, its table of terms, its change
   signal, its pages' cursors.

@@ -34,13 +34,14 @@ from collections.abc import Callable
 from segb_server.backend.services.errors import OUTAGES
 from segb_server.backend.services.ops.leadership import Lead, Leadership
 from segb_server.backend.services.views.delta import Delta
+from segb_server.backend.services.views.lane_hosting import LaneHosting
 from segb_server.backend.services.views.lanes import Batch, Turns, ViewLane, ViewTime
 from segb_server.backend.services.views.preparing import ViewBuilds
 from segb_server.backend.services.views.progress import ViewsProgress
 from segb_server.backend.services.views.seen_terms import SeenTerms
 from segb_server.backend.services.views.steps import MAX_QUEUED_TRIPLES, Marker, StepQueue, Unread
 from segb_server.backend.services.views.view import ForgetsErased, KeptView
-from segb_server.backend.services.writing.applier import Applied, Applier, applied_steps
+from segb_server.backend.services.writing.applier import Applied, Applier
 from segb_server.backend.services.writing.journal import Journal
 from segb_server.backend.store.base import Store
 
@@ -104,11 +105,11 @@ class ViewKeeper:
         # not posts outpacing their upkeep. Written by the keeper's thread, read by requests.
         self.building_all = False
         self.builds = ViewBuilds(store, journal, seen_terms)
-        self._dispatched = 0  # the journal entry the batches handed to the lanes end at
         turns = max(1, len(views)) if store.remote else EMBEDDED_VIEW_TURNS
-        self.turns = Turns(general=turns, express=1)
-        self.lanes = {view.name: ViewLane(view, self) for view in views}
+        self.lanes: dict[str, ViewLane] = {}
         self.progress = ViewsProgress(journal, views, self.lanes, self.builds)
+        host = LaneHosting(journal, self.builds, self.progress, Turns(general=turns, express=1), self.stopping)
+        self.lanes.update({view.name: ViewLane(view, host) for view in views})
 
     def start(self) -> None:
         self._thread = threading.Thread(target=self._run, name="segb-views", daemon=True)
@@ -143,45 +144,10 @@ class ViewKeeper:
         built (None when neither)."""
         return self.outage or self.builds.errors()
 
-    # --- what the lanes ask (lanes.LaneHost) --------------------------------------------------------------
-
-    def read_back(self, batch: Batch) -> Delta:
-        """A batch handed out without its triples, read back from the journal."""
-        steps = applied_steps(self.journal.entries_after(batch.first - 1, batch.through - batch.first + 1))
-        return Delta.of([quad for step in steps for quad in step.quads], batch.fresh)
-
-    def lane_failed(self, lane: ViewLane, error: BaseException) -> bool:
-        """A lane's update failed: True to try it again (the store or the views' storage away), else the view
-        is set aside, built again later."""
-        try:
-            self.builds.set_aside_unless_away(lane.view, error)
-        except OUTAGES as outage:
-            lane.outage = str(outage)
-            logger.warning("keeping view %s current failed (%s); retrying", lane.name, outage)
-            return True
-        lane.outage = None
-        return False
-
-    def is_set_aside(self, lane: ViewLane) -> bool:
-        return self.builds.is_set_aside(lane.view)
-
-    def rebuild_due(self, lane: ViewLane) -> int | None:
-        """Where a view set aside is built through, once its retry is due (None before)."""
-        return self._dispatched if time.monotonic() >= self.builds.retry_at else None
-
-    def rebuild(self, lane: ViewLane, through: int) -> None:
-        try:
-            self.builds.build_or_set_aside(lane.view, through)
-        except OUTAGES as outage:  # the store away: the next turn tries again
-            self.builds.set_view_aside(lane.view, outage)
-            return
-        if not self.builds.is_set_aside(lane.view):
-            lane.cursor.advance(through)
+    # --- the keeper's thread --------------------------------------------------------------------------
 
     def lane_advanced(self) -> None:
-        self.progress.advanced(self._dispatched)
-
-    # --- the keeper's thread --------------------------------------------------------------------------
+        self.progress.advanced()
 
     def _run(self) -> None:
         while not self.leadership.try_acquire():
@@ -210,7 +176,7 @@ class ViewKeeper:
             lane.start()
         rested = 0.0  # when the rest after the last batch ends (time.monotonic())
         while True:
-            steps = self.steps.next_steps(rested, self._dispatched)
+            steps = self.steps.next_steps(rested, self.progress.dispatched)
             if steps is None:
                 return
             applied = [step for step in steps if not isinstance(step, Marker)]
@@ -219,12 +185,14 @@ class ViewKeeper:
                 return
             self._mark([step for step in steps if isinstance(step, Marker)])
             ended = time.monotonic()
-            resting = applied and self.rest_ratio > 0 and self.steps.waited(self._dispatched) < NO_REST_BEHIND_SECONDS
+            resting = (
+                applied and self.rest_ratio > 0 and self.steps.waited(self.progress.dispatched) < NO_REST_BEHIND_SECONDS
+            )
             rested = ended + min(MAX_REST_SECONDS, self.rest_ratio * (ended - began)) if resting else 0.0
 
     def _mark(self, markers: list[Marker]) -> None:
         """Each marker fires once every view is through what was handed out before it."""
-        self.progress.fire_at(self._dispatched, [marker.done for marker in markers])
+        self.progress.fire_at(self.progress.dispatched, [marker.done for marker in markers])
 
     def _process_retrying(self, applied: list[Applied | Unread]) -> bool:
         """Hand `applied` to the views, retrying while the store is away; False when stopped meanwhile."""
@@ -269,7 +237,7 @@ class ViewKeeper:
 
     def _prepare_all(self) -> None:
         current = self.builds.prepare_all(self.views, self._view_prepared)
-        self._dispatched = max(self._dispatched, current)
+        self.progress.dispatched = max(self.progress.dispatched, current)
         self.lane_advanced()
 
     def _view_prepared(self, view: KeptView, through: int) -> None:
@@ -278,19 +246,19 @@ class ViewKeeper:
     def _process(self, items: list[Applied | Unread]) -> None:
         if not self.views:  # KEEP_VIEWS=false: nothing to read or match; waiting for the views waits for the store
             last = items[-1]
-            self._dispatched = last.last if isinstance(last, Unread) else last.entries[-1].sequence
+            self.progress.dispatched = last.last if isinstance(last, Unread) else last.entries[-1].sequence
             self.lane_advanced()
             return
-        steps = [step for step in self.steps.read_unread(items) if step.entries[-1].sequence > self._dispatched]
+        steps = [step for step in self.steps.read_unread(items) if step.entries[-1].sequence > self.progress.dispatched]
         if not steps:
             return
         first = steps[0].entries[0].sequence
-        if first > self._dispatched + 1:  # applied by another process before this one took over: read them back
-            steps = [*self.steps.read_back(self._dispatched, first), *steps]
+        if first > self.progress.dispatched + 1:  # applied by another process before this one took over: read them back
+            steps = [*self.steps.read_back(self.progress.dispatched, first), *steps]
         cleared = max((index for index, step in enumerate(steps) if step.cleared or step.erased), default=-1)
         if cleared >= 0:
             self._clear_or_rebuild(steps[cleared])
-            steps = [step for step in steps[cleared + 1 :] if step.entries[-1].sequence > self._dispatched]
+            steps = [step for step in steps[cleared + 1 :] if step.entries[-1].sequence > self.progress.dispatched]
         if steps:
             self._hand_out(steps)
 
@@ -312,7 +280,7 @@ class ViewKeeper:
                 self.seen_terms.clear(at)
             for lane in self.lanes.values():
                 lane.cursor.advance(at)
-        self._dispatched = max(self._dispatched, at)
+        self.progress.dispatched = max(self.progress.dispatched, at)
         self.lane_advanced()
 
     def _hand_out(self, steps: list[Applied]) -> None:
@@ -331,7 +299,7 @@ class ViewKeeper:
         for lane in lanes:
             behind = lane not in in_step and held + len(quads) > LANES_MAX_HELD_TRIPLES
             lane.hand(batch.without_triples() if behind else batch)
-        self._dispatched = through
+        self.progress.dispatched = through
         self._wait_in_step(in_step, through)
 
     def _held_triples(self) -> int:
@@ -361,30 +329,15 @@ class ViewKeeper:
     def _build_all(self, through: int) -> None:
         """Every view built again through `through` (after a failure outside any one view's update)."""
         self._wait_lanes_idle()
-        if self.seen_terms is not None:
-            self.seen_terms.build(self.store, through)
+        self.builds.build_all(self.views, through)
         for lane in self.lanes.values():
-            self.builds.build_or_set_aside(lane.view, through)
             lane.drop(through)
             lane.cursor.advance(through)
-        self._dispatched = max(self._dispatched, through)
+        self.progress.dispatched = max(self.progress.dispatched, through)
         self.lane_advanced()
 
     def _rebuild_all(self, erased_at: int) -> int:
-        """After an erasure: every view emptied, then built from the store (which holds at least the journal
-        through `erased_at`); until a view is built again its answers are not served (reports are evaluated by
-        their queries meanwhile), so nothing erased is served from old rows. Returns where the views now are."""
-        current = max(erased_at, self.store.applied_through() or 0)
-        if self.seen_terms is not None:  # the erased IRIs' hashes go too
-            self.seen_terms.build(self.store, current)
-        for view in self.views:
-            view.ready = False
-            view.clear(erased_at)
-        for view in self.views:  # what a clearing keeps (tables of terms, change logs) goes too
-            if isinstance(view, ForgetsErased):
-                view.forget_erased()
-        for view in self.views:
-            self.builds.build_or_set_aside(view, current)
+        current = self.builds.rebuild_all(self.views, erased_at)
         for lane in self.lanes.values():
             lane.cursor.advance(current)
         return current

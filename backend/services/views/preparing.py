@@ -11,7 +11,7 @@ from collections.abc import Callable
 from segb_server.backend.services.errors import OUTAGES
 from segb_server.backend.services.views.delta import Delta
 from segb_server.backend.services.views.seen_terms import SeenTerms
-from segb_server.backend.services.views.view import KeptView
+from segb_server.backend.services.views.view import ForgetsErased, KeptView
 from segb_server.backend.services.writing.applier import quads_of
 from segb_server.backend.services.writing.journal import Journal
 from segb_server.backend.state.database import StateUnavailable
@@ -93,6 +93,30 @@ class ViewBuilds:
             self.set_aside_unless_away(view, error)
             return
         self.put_back(view)
+
+    def build_all(self, views: list[KeptView], through: int) -> None:
+        """Every view built again through `through` (after a failure outside any one view's update)."""
+        if self.seen_terms is not None:
+            self.seen_terms.build(self.store, through)
+        for view in views:
+            self.build_or_set_aside(view, through)
+
+    def rebuild_all(self, views: list[KeptView], erased_at: int) -> int:
+        """After an erasure: every view emptied, then built from the store (which holds at least the journal
+        through `erased_at`); until a view is built again its answers are not served (reports are evaluated by
+        their queries meanwhile), so nothing erased is served from old rows. Returns where the views now are."""
+        current = max(erased_at, self.store.applied_through() or 0)
+        if self.seen_terms is not None:  # the erased IRIs' hashes go too
+            self.seen_terms.build(self.store, current)
+        for view in views:
+            view.ready = False
+            view.clear(erased_at)
+        for view in views:  # what a clearing keeps (tables of terms, change logs) goes too
+            if isinstance(view, ForgetsErased):
+                view.forget_erased()
+        for view in views:
+            self.build_or_set_aside(view, current)
+        return current
 
     def prepare_all(self, views: list[KeptView], advance: Callable[[KeptView, int], None]) -> int:
         """Build each view never built (or of another version) and catch up the others, through the entry the

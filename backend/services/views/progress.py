@@ -25,12 +25,13 @@ class ViewsProgress:
         self.cursor = Cursor()  # the journal entry every view is current through (the lanes' least)
         self._markers: list[tuple[int, threading.Event]] = []  # `wait_until_current`'s: (entry, done)
         self._markers_lock = threading.Lock()
+        self.dispatched = 0  # the journal entry the batches handed to the lanes end at (the keeper's to move)
 
-    def advanced(self, dispatched: int) -> None:
+    def advanced(self) -> None:
         """A lane moved: the common cursor follows the least of the lanes not set aside (all of what was handed
-        out, `dispatched`, when every view is), and the markers it reached fire."""
+        out when every view is), and the markers it reached fire."""
         kept = [lane.cursor.value for lane in self.lanes.values() if not self.builds.is_set_aside(lane.view)]
-        self.cursor.advance(min(kept, default=dispatched))
+        self.cursor.advance(min(kept, default=self.dispatched))
         with self._markers_lock:
             reached = [done for at, done in self._markers if at <= self.cursor.value]
             self._markers = [(at, done) for at, done in self._markers if at > self.cursor.value]
@@ -41,7 +42,7 @@ class ViewsProgress:
         """Set each of `markers` once every view is through entry `through`."""
         with self._markers_lock:
             self._markers += [(through, done) for done in markers]
-        self.advanced(through)
+        self.advanced()
 
     def wait_for(self, sequence: int, timeout: float) -> bool:
         """Wait until the views include journal entry `sequence` (True), or `timeout` seconds passed."""
