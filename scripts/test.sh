@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The README's test commands.
 #
-# ./scripts/test.sh [pytest arguments]         the full suite, what CI runs. Installs what the tests need —
+# ./scripts/test.sh [pytest arguments]         the full suite, what CI runs (without arguments: on both cores, the
+#     container tier last and alone; with arguments, one pytest run of them). Installs what the tests need —
 #     Debian's Virtuoso, Chromium, PostgreSQL, nginx and, for the container tier, Docker's daemon and
 #     debootstrap, when missing; the pinned Python packages from requirements-test.lock (hash-checked); the
 #     project itself — then runs pytest (the container tier last). E.g. `./scripts/test.sh -m containers` for the
@@ -61,4 +62,14 @@ if ((${#missing[@]})); then
 fi
 
 install_python_packages
-exec python3 -m pytest "$@"
+if (($#)); then
+  exec python3 -m pytest "$@"
+fi
+# Everything but the container tier on both cores (a test module to a worker; each worker starts its own
+# Virtuoso, PostgreSQL and browser), then the container tier alone: it runs a Docker daemon of its own and wants
+# the machine. One test at a time the whole run took 58 minutes on these 2 cores; on two workers the rest took 46
+# minutes while other work loaded the same cores.
+status=0
+python3 -m pytest -n 2 --dist loadfile -m "not containers" --durations=25 || status=$?
+python3 -m pytest -m containers --durations=10 || status=$?
+exit "$status"

@@ -190,7 +190,14 @@ def test_flags_override_environment_and_bad_settings_fail_fast(tmp_path: Path) -
         process.wait(timeout=30)
 
 
-def wait_for(url: str, timeout: float = 30) -> httpx.Response:
+# A server's start on a busy two-core machine (another test run, a CI neighbour) parses every kept query and
+# starts its processes: a minute and more. The wait ends as soon as it answers, so a generous limit costs nothing
+# when all is well.
+START_SECONDS = 180
+
+
+def wait_for(url: str, timeout: float = START_SECONDS) -> httpx.Response:
+    """The first answer from `url`, asked again until it comes or `timeout` seconds passed."""
     deadline = time.monotonic() + timeout
     while True:
         try:

@@ -213,7 +213,7 @@ def serve_demo(data_dir: Path, env: dict[str, str] | None = None, then: Callable
     )
     api = f"http://127.0.0.1:{api_port}"
     try:
-        wait_for(f"{api}/healthz/ready", timeout=60)
+        wait_for(f"{api}/healthz/ready")
         participants = rows(api, "participants")
         triples = triple_count(api)
         ledger = httpx.get(f"{api}/ledger", timeout=30).json()["total"]

@@ -48,7 +48,7 @@ def serving(data: Path, **env: str) -> Iterator[tuple[subprocess.Popen[bytes], s
         server = subprocess.Popen(argv, env=clean_env(env), stdout=subprocess.DEVNULL, stderr=log)
     url = f"http://127.0.0.1:{port}"
     try:
-        wait_for(f"{url}/healthz/live", timeout=60)
+        wait_for(f"{url}/healthz/live")
         yield server, url
     finally:
         end(server)

@@ -75,7 +75,7 @@ class Workers:
                 stderr=log,
                 start_new_session=True,
             )
-        wait_for(f"{self.url}/healthz/live", timeout=60)
+        wait_for(f"{self.url}/healthz/live")
 
     def leader(self) -> int:
         """The process that applies the journal (with SQLite state, the one holding the data directory's lock)."""

@@ -13,7 +13,7 @@ from pathlib import Path
 
 @contextmanager
 def running(
-    argv: list[str], *, ready: str, env: dict[str, str] | None = None, log: Path | None = None, timeout: float = 60
+    argv: list[str], *, ready: str, env: dict[str, str] | None = None, log: Path | None = None, timeout: float = 180
 ) -> Iterator[subprocess.Popen[bytes]]:
     """Start `argv`, wait until `ready` (a URL) answers 200, and stop it (SIGTERM) when the block ends. Its
     stderr goes to `log` when given: a pipe nobody reads would stall it once full."""
