@@ -13,9 +13,11 @@ tutorial's graph has none). Triples the robot removes are not unsent: the server
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from typing import Any
 
 from rdflib import BNode, Graph
+from rdflib.term import Node
 from semantic_log_generator import SEGBPublisher, SemanticSEGBLogger
 
 
@@ -43,9 +45,14 @@ class NewOnly:
         self._sent.update(new)
         if any(isinstance(term, BNode) for triple in new for term in triple):
             return None
-        delta = Graph()
-        for prefix, namespace in graph.namespaces():
-            delta.bind(prefix, namespace, override=True)
-        for triple in new:
-            delta.add(triple)
-        return delta.serialize(format="turtle")
+        return turtle_of(new, graph)
+
+
+def turtle_of(triples: Iterable[tuple[Node, Node, Node]], like: Graph) -> str:
+    """`triples` as Turtle, with the prefixes of `like` (the robot's own graph)."""
+    delta = Graph()
+    for prefix, namespace in like.namespaces():
+        delta.bind(prefix, namespace, override=True)
+    for triple in triples:
+        delta.add(triple)
+    return delta.serialize(format="turtle")

@@ -16,6 +16,7 @@ from pyoxigraph import Literal, RdfFormat, parse
 from rdflib import Graph
 
 from segb_server.examples.emotion_mirror.mission import EmotionMirrorMission, RobotConfig
+from segb_server.examples.emotion_mirror.publishing import turtle_of
 
 T0 = datetime(2026, 3, 10, 9, 0, tzinfo=UTC)
 EXPRESSIONS = ["happy", "sad", "surprised", "angry", "happy", "afraid"]
@@ -65,12 +66,7 @@ def run_exchange(robot: EmotionMirrorMission, index: int) -> None:
 
 
 def turtle(triples: list[tuple], like: Graph) -> str:
-    delta = Graph()
-    for prefix, namespace in like.namespaces():
-        delta.bind(prefix, namespace, override=True)
-    for triple in triples:
-        delta.add(triple)
-    return delta.serialize(format="turtle")
+    return turtle_of(triples, like)
 
 
 def event_deltas(count: int, robot_name: str = "mirror") -> list[str]:
