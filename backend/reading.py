@@ -139,8 +139,22 @@ def _classes(classes: Collection[str]) -> str:
     return ", ".join(_iri(iri) for iri in sorted(classes))
 
 
+# How the rules write an OPTIONAL: its body one triple pattern or one path (`a/b`), with filters and BINDs, never
+# two patterns. The embedded store evaluates an OPTIONAL of one pattern or path for each row it extends, with the
+# row's values bound; a body of two patterns (a join) it evaluates once in full and joins afterwards, a cost that
+# grows with the log: a batch's conversations rows took 90-110 ms at 2,000 visits of one robot with the human's
+# type as a second pattern, 9 ms with it as a FILTER EXISTS (bench/keyed_rules.py).
+
+
 def _human(x: str) -> str:
-    """`x` is typed as a person (as a join: Virtuoso 7 lets robots through a FILTER EXISTS on the type)."""
+    """`x` is typed as a person: a filter, so that in an OPTIONAL body it leaves one pattern (see the note above),
+    and in a group the type is asked for the row at hand rather than joined with every typed resource."""
+    return f"FILTER EXISTS {{ {x} a {x}_humanClass . FILTER ({x}_humanClass IN ({_classes(PERSON_CLASSES)})) }}"
+
+
+def _any_human(x: str) -> str:
+    """`x` ranges over the resources typed as a person: a join that binds `x`, for a group where nothing else
+    does (`_human` tests an `x` the group binds; in a UNION branch a variable bound outside it is unbound)."""
     return f"{x} a {x}_humanClass . FILTER ({x}_humanClass IN ({_classes(PERSON_CLASSES)}))"
 
 
@@ -216,12 +230,9 @@ def _concerned_human(message: str, activity: str, human: str) -> str:
     about = f"<{_SCHEMA}about>"
     return "\n  ".join([
         f"OPTIONAL {{ {message} <{_SCHEMA}sender> {h}_sender . {_human(h + '_sender')} }}",
-        f"OPTIONAL {{ {message} <{_PROV}wasDerivedFrom> {h}_previous . {h}_previous <{_SCHEMA}sender> {h}_answered ."
-        f" {_human(h + '_answered')} }}",
-        f"OPTIONAL {{ {message} <{_PROV}specializationOf> {h}_event . {h}_event {about} {h}_subject ."
-        f" {_human(h + '_subject')} }}",
-        f"OPTIONAL {{ {activity} {about} {h}_activityEvent . {h}_activityEvent {about} {h}_activitySubject ."
-        f" {_human(h + '_activitySubject')} }}",
+        f"OPTIONAL {{ {message} <{_PROV}wasDerivedFrom>/<{_SCHEMA}sender> {h}_answered . {_human(h + '_answered')} }}",
+        f"OPTIONAL {{ {message} <{_PROV}specializationOf>/{about} {h}_subject . {_human(h + '_subject')} }}",
+        f"OPTIONAL {{ {activity} {about}/{about} {h}_activitySubject . {_human(h + '_activitySubject')} }}",
         f"BIND (COALESCE({h}_sender, {h}_answered, {h}_subject, {h}_activitySubject) AS {h})",
     ])  # fmt: skip
 
@@ -265,9 +276,13 @@ def _activity_kind(activity: str, kind: str) -> str:
 
 def _activity_kinds(activity: str, kind: str) -> str:
     """Each of the activity's kinds, a row each (the most specific is first in `ACTIVITY_KINDS`). Not a UNION of
-    BINDs: asked for several activities at once, Virtuoso 7 gives one activity the kinds of another."""
-    pairs = " ".join(f'(<{cls}> "{name}")' for cls, name in ACTIVITY_KINDS)
-    return f"OPTIONAL {{ {activity} a {kind}_class . VALUES ({kind}_class {kind}) {{ {pairs} }} }}"
+    BINDs: asked for several activities at once, Virtuoso 7 gives one activity the kinds of another. Not a VALUES
+    beside the type: two patterns in an OPTIONAL (see the note on OPTIONALs above `_human`)."""
+    classes = _classes([cls for cls, _ in ACTIVITY_KINDS])
+    chain = '"activity"'
+    for cls, name in reversed(ACTIVITY_KINDS):
+        chain = f'IF({kind}_class = <{cls}>, "{name}", {chain})'
+    return f"OPTIONAL {{ {activity} a {kind}_class . FILTER ({kind}_class IN ({classes})) BIND ({chain} AS {kind}) }}"
 
 
 def _involves_human(activity: str) -> str:
@@ -297,6 +312,7 @@ def _target_kind(target: str, robot: str, kind: str) -> str:
 
 RULES: dict[str, Callable[..., str]] = {
     "human": _human,
+    "any-human": _any_human,
     "robot": _robot,
     "display-name": _display_name,
     "event-time": _event_time,

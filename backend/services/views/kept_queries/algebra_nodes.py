@@ -31,16 +31,32 @@ def pattern_term(term: object) -> str:
     raise Unsupported(f"the term {term!r}")
 
 
+def unwrapped(expression: object) -> object:
+    """An expression as parsed (a FILTER inside EXISTS) without its wrappers of one term (an "OR" of one
+    "AND" of one comparison…), as the algebra has it elsewhere."""
+    while (
+        isinstance(expression, CompValue)
+        and expression.name.endswith("Expression")
+        and not dict.get(expression, "other")  # (CompValue's own `get` answers a missing key with its name)
+        and "expr" in expression
+    ):
+        expression = expression["expr"]
+    return expression
+
+
 def iri_list(expression: object) -> tuple[str, frozenset[str]] | None:
     """`?x IN (<a>, <b>, …)`, all IRIs: (?x, their N-Triples texts)."""
+    expression = unwrapped(expression)
     if not (isinstance(expression, CompValue) and expression.name == "RelationalExpression"):
         return None
-    variable, others = expression.get("expr"), expression.get("other") or []
+    variable = unwrapped(expression.get("expr"))
+    others = [unwrapped(other) for other in dict.get(expression, "other") or []]
     if expression.get("op") != "IN" or not isinstance(variable, Variable) or not others:
         return None
-    if not all(isinstance(other, URIRef) for other in others):
+    iris = [other for other in others if isinstance(other, URIRef)]
+    if len(iris) != len(others):
         return None
-    return f"?{variable}", frozenset(other.n3() for other in others)
+    return f"?{variable}", frozenset(iri.n3() for iri in iris)
 
 
 def has_filter(graph: CompValue) -> bool:

@@ -63,11 +63,12 @@ def describe(query: CatalogQuery) -> list[str]:
     for pattern in plan.patterns:
         if pattern in ignored:
             continue
+        matched = _joined([pattern], plan.allowed_in([pattern]))
         if f"?{unit}" in pattern.variables():
-            lines.append(f"    {_short(pattern.sparql())}  → holds ?{unit}")
+            lines.append(f"    {matched}  → holds ?{unit}")
             continue
         for chain in chains(plan, pattern, f"?{unit}"):
-            lines.append(f"    {_short(pattern.sparql())}  → from {' '.join(chain.names)}: {_short(chain.steps)}")
+            lines.append(f"    {matched}  → from {' '.join(chain.names)}: {_short(chain.steps)}")
     if plan.required:
         lines.append(
             "  a key the batch introduced is evaluated only when what every row needs can match among the batch's "

@@ -19,6 +19,7 @@ from segb_server.backend.services.views.kept_queries.algebra_nodes import (
     pattern_term,
     switched_filter,
     triples_of,
+    unwrapped,
 )
 from segb_server.backend.services.views.kept_queries.plan_parts import (
     Aggregate,
@@ -219,6 +220,10 @@ class QueryWalker:
                 if len(part["var"]) == 1 and all(isinstance(value, URIRef) for value in part["value"]):
                     self.narrowed[(group, f"?{part['var'][0]}")] = frozenset(value.n3() for value in part["value"])
             elif part.name == "Filter":
+                # `EXISTS { ?x a ?c FILTER (?c IN (…)) }` narrows ?c
+                for conjunct in conjuncts(unwrapped(part["expr"])):
+                    if (listed := iri_list(conjunct)) is not None:
+                        self.narrowed[(group, listed[0])] = listed[1]
                 self._expression(part["expr"], group)
             else:
                 raise Unsupported(f"{part.name} inside EXISTS")
