@@ -367,7 +367,7 @@ def _upkeep(args: argparse.Namespace) -> int:
 
 def _kept_queries(catalog: Catalog, rules: RuleCatalog) -> list[CatalogQuery]:
     """Every query kept as rows: the reports, the timeline's kinds and the SPARQL rules, in that order."""
-    from segb_server.backend.services.reports.service import FOLDER
+    from segb_server.backend.services.reports.folder import FOLDER
     from segb_server.backend.services.timeline.kinds import FOLDER as TIMELINE_FOLDER
 
     sparql_rules = [rule.query for rule in rules.sparql() if rule.query is not None]

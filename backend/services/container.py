@@ -18,7 +18,7 @@ from segb_server.backend.services.people.export import STORY, PersonExport
 from segb_server.backend.services.people.mentions import RULE as MENTIONS_RULE
 from segb_server.backend.services.people.places import forgetting
 from segb_server.backend.services.people.retention import Retention
-from segb_server.backend.services.reports.service import FOLDER as REPORTS_FOLDER
+from segb_server.backend.services.reports.folder import FOLDER as REPORTS_FOLDER
 from segb_server.backend.services.reports.service import ReportService
 from segb_server.backend.services.rules.catalog import RuleCatalog
 from segb_server.backend.services.rules.service import FindingsService

@@ -10,7 +10,7 @@ from rdflib.plugins.sparql import prepareQuery
 from rdflib.plugins.sparql.parserutils import CompValue
 
 from segb_server.backend.config import PACKAGE_ROOT
-from segb_server.backend.services.reports.service import FOLDER
+from segb_server.backend.services.reports.folder import FOLDER
 from segb_server.backend.services.rules.catalog import RuleCatalog
 from segb_server.backend.services.sparql.catalog import Catalog, CatalogQuery
 from segb_server.backend.services.timeline.kinds import FOLDER as TIMELINE_FOLDER

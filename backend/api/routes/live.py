@@ -17,7 +17,7 @@ from fastapi import APIRouter, Query, Request
 from fastapi.responses import StreamingResponse
 
 from segb_server.backend.api.deps import Auditor, ServicesDep
-from segb_server.backend.services.reports.service import FOLDER
+from segb_server.backend.services.reports.folder import FOLDER
 from segb_server.backend.services.views.kept_queries.rows import KeptRows
 from segb_server.backend.services.views.signal import ChangeSignal
 

@@ -19,7 +19,8 @@ from segb_server.backend.api.paging import MAX_OFFSET
 from segb_server.backend.api.responses import FastJSONResponse
 from segb_server.backend.services.errors import InvalidParameter
 from segb_server.backend.services.formats import TABLES, names, negotiate
-from segb_server.backend.services.reports.service import DEFAULT_LIMIT, FOLDER, MAX_LIMIT, describe, short_name
+from segb_server.backend.services.reports.folder import FOLDER
+from segb_server.backend.services.reports.service import DEFAULT_LIMIT, MAX_LIMIT, describe, short_name
 from segb_server.backend.services.sparql.catalog import Catalog, CatalogQuery
 
 # Query-string names that page or format a report; every other name must be one of the report's parameters.

@@ -10,6 +10,7 @@ from dataclasses import dataclass, replace
 from segb_server.backend.services.csv_cells import spreadsheet_safe
 from segb_server.backend.services.errors import Conflict, InvalidParameter, NotFound
 from segb_server.backend.services.ops.result_cache import DataVersion, ResultCache
+from segb_server.backend.services.reports.folder import FOLDER
 from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, Catalog, CatalogQuery
 from segb_server.backend.services.sparql.paging import evaluated_page
 from segb_server.backend.services.values import JsonValue, json_value
@@ -18,7 +19,6 @@ from segb_server.backend.services.views.kept_queries.rows import KeptRows
 from segb_server.backend.services.writing.write_path import Lag
 from segb_server.backend.store.base import Bindings, Store
 
-FOLDER = "reports"
 DEFAULT_LIMIT = 1000
 MAX_LIMIT = 10_000
 

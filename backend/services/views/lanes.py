@@ -13,7 +13,9 @@ How many views update at once is bounded by `Turns`: on the embedded store the v
 CPU, which the posts need too. A batch of a few triples (a post) has a turn of its own beside the others, so
 fresh posts never wait for two views that chew on an import; and the views waiting for a turn take it cheapest
 first (their batch's triples times what a triple has cost that view so far), so a cheap report is not kept behind
-an expensive index."""
+an expensive index. The reports come before the other views (`served_first`): their lag is what readiness and
+the ingest's pace watch, and a robot's messages are in the conversations report within a second of their 201
+even right after a large import, while the graph, the timeline and the findings are still taking it in."""
 
 from __future__ import annotations
 
@@ -27,6 +29,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Protocol
 
+from segb_server.backend.services.reports.folder import FOLDER as REPORTS_FOLDER
 from segb_server.backend.services.views.delta import Delta
 from segb_server.backend.services.writing.cursor import Cursor
 
@@ -79,20 +82,25 @@ class ViewTime:
         return self.wall / self.triples * triples if self.triples else 0.0
 
 
+def served_first(view: str) -> bool:
+    """Whether a view's lane goes before the others waiting for a general turn: the reports'."""
+    return view.startswith(f"{REPORTS_FOLDER}/")
+
+
 class Turns:
     """Who may update a view now: `general` turns for any batch and `express` turns for small ones only. Of the
-    lanes waiting, the cheapest batch goes first."""
+    lanes waiting, those served first before the others, then the cheapest batch."""
 
     def __init__(self, general: int, express: int) -> None:
         self._free = {"general": general, "express": express}
-        self._waiting: list[tuple[float, int, bool]] = []  # (cost, arrival, small)
+        self._waiting: list[tuple[int, float, int, bool]] = []  # (rank, cost, arrival, small)
         self._arrivals = itertools.count()
         self._changed = threading.Condition()
 
     @contextmanager
-    def turn(self, cost: float, small: bool) -> Iterator[None]:
+    def turn(self, cost: float, small: bool, first: bool = False) -> Iterator[None]:
         with self._changed:
-            me = (cost, next(self._arrivals), small)
+            me = (0 if first else 1, cost, next(self._arrivals), small)
             self._waiting.append(me)
             self._changed.wait_for(lambda: self._kind_for(me) is not None)
             kind = self._kind_for(me)
@@ -106,16 +114,17 @@ class Turns:
                 self._free[kind] += 1
                 self._changed.notify_all()
 
-    def _kind_for(self, me: tuple[float, int, bool]) -> str | None:
+    def _kind_for(self, me: tuple[int, float, int, bool]) -> str | None:
         """The turn `me` may take now: an express one when it is small and one is free; else a general one when
-        one is free and no waiter for a general turn has a cheaper batch (or the same, and came first)."""
-        if me[2] and self._free["express"] > 0:
+        one is free and no waiter for a general turn is ranked before it, has a cheaper batch, or the same and
+        came first."""
+        if me[3] and self._free["express"] > 0:
             return "express"
         if self._free["general"] <= 0:
             return None
         express_free = self._free["express"] > 0
         for other in self._waiting:
-            if other is not me and not (other[2] and express_free) and other[:2] < me[:2]:
+            if other is not me and not (other[3] and express_free) and other[:3] < me[:3]:
                 return None
         return "general"
 
@@ -243,7 +252,8 @@ class ViewLane:
             try:
                 delta = self._delta_of(taken)
                 cost = self.spent.cost_of(triples)
-                with self.host.turns.turn(cost, small=triples <= SMALL_BATCH_TRIPLES):
+                small, first = triples <= SMALL_BATCH_TRIPLES, served_first(self.name)
+                with self.host.turns.turn(cost, small=small, first=first):
                     wall, cpu = _timed(self.view.update, delta, taken[-1].through)
             except Exception as error:
                 if self.host.lane_failed(self, error):  # an outage: the same batches again, in a while
