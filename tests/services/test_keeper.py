@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from pyoxigraph import DefaultGraph, NamedNode, Quad
@@ -12,6 +13,7 @@ from pyoxigraph import DefaultGraph, NamedNode, Quad
 from segb_server.backend.services.ingest.service import post_entry
 from segb_server.backend.services.views.delta import Delta
 from segb_server.backend.services.views.keeper import MAX_REST_SECONDS, ViewKeeper
+from segb_server.backend.services.views.lanes import SMALL_BATCH_TRIPLES
 from segb_server.backend.services.views.preparing import RETRY_BUILD_SECONDS
 from segb_server.backend.services.views.steps import START_WITHIN_SECONDS
 from segb_server.backend.services.writing.applier import Applied, quads_of
@@ -331,4 +333,77 @@ def test_a_view_busy_with_a_large_batch_holds_no_other_view_back(tmp_path: Path)
         assert [through for through, _, _ in busy.updates][-1] == 4 and len(busy.updates) <= 2  # what it missed, as one
     finally:
         busy.release.set()
+        keeper.stop()
+
+
+class AheadView(RecordingView):
+    """A view whose rows are read key by key from the store (`GoesAhead`): its update of a large batch runs in
+    parts, held until released, and records what was taken ahead of it."""
+
+    def __init__(self, name: str) -> None:
+        super().__init__(name)
+        self.release = threading.Event()
+        self.ahead: list[int] = []
+        self.position: list[int] = []  # where each update in parts left the view
+
+    def update_ahead(self, delta: Delta, through: int) -> None:
+        with self.updated:
+            self.ahead.append(through)
+            self.updated.notify_all()
+
+    def update_in_parts(self, delta: Delta, through: int, between: Callable[[], int]) -> None:
+        self.began.set()
+        while not self.release.wait(timeout=0.01):
+            between()  # a part of its keys done: the posts behind it go ahead
+        self.position.append(max(through, between()))
+        super().update(delta, through)
+
+
+def large_step(sequence: int) -> Applied:
+    """An import: a step of more triples than a small batch holds."""
+    quads = [Quad(NamedNode(f"urn:x:s{n}"), NamedNode("urn:x:p"), NamedNode("urn:x:o"), DefaultGraph())
+             for n in range(SMALL_BATCH_TRIPLES + 1)]  # fmt: skip
+    return Applied([JournalEntry(sequence, "post", b"")], quads, cleared=False)
+
+
+def test_posts_go_ahead_of_a_large_batch_in_a_view_that_reads_its_keys_from_the_store(tmp_path: Path) -> None:
+    """A report busy with an import takes the posts that came after it ahead of it: their rows need not wait for
+    the import's. Its position moves past them only once the import is taken in too."""
+    report = AheadView("reports/conversations")
+    keeper = ViewKeeper(OxigraphStore("urn:x:graph"), Journal(SqliteDatabase(tmp_path / "journal.sqlite3")), [report])
+    keeper.start()
+    try:
+        keeper.on_applied(large_step(1))
+        assert report.began.wait(timeout=10)
+        for sequence in (2, 3, 4):  # posts after it, while it is still taking the import in
+            keeper.on_applied(step(sequence))
+        with report.updated:
+            assert report.updated.wait_for(lambda: report.ahead and report.ahead[-1] == 4, timeout=10), report.ahead
+        assert keeper.progress.view_through("reports/conversations") == 0  # its lag still says the import
+        assert not report.updates  # the import not done
+        report.release.set()
+        assert keeper.progress.wait_for(4, timeout=10)
+        assert report.position == [4] and [through for through, _, _ in report.updates] == [1]
+        assert sorted(report.ahead) == report.ahead and set(report.ahead) <= {2, 3, 4}
+    finally:
+        report.release.set()
+        keeper.stop()
+
+
+def test_a_view_that_follows_its_batches_in_order_takes_no_post_ahead_of_a_large_batch(tmp_path: Path) -> None:
+    """The graph index and the SHACL findings follow the triples of each batch: the posts wait behind the import."""
+    graph = GatedView("graph")
+    keeper = ViewKeeper(OxigraphStore("urn:x:graph"), Journal(SqliteDatabase(tmp_path / "journal.sqlite3")), [graph])
+    keeper.start()
+    try:
+        keeper.on_applied(large_step(1))
+        assert graph.began.wait(timeout=10)
+        keeper.on_applied(step(2))
+        time.sleep(0.3)
+        assert not graph.updates
+        graph.release.set()
+        assert keeper.progress.wait_for(2, timeout=10)
+        assert [through for through, _, _ in graph.updates] == [1, 2]
+    finally:
+        graph.release.set()
         keeper.stop()

@@ -7,7 +7,7 @@ from __future__ import annotations
 import threading
 import time
 
-from segb_server.backend.services.views.lanes import Turns, served_first
+from segb_server.backend.services.views.turns import Turns, served_first
 
 
 def _queue(turns: Turns, waiters: list[tuple[str, float, bool, bool]]) -> list[str]:

@@ -35,11 +35,12 @@ from segb_server.backend.services.errors import OUTAGES
 from segb_server.backend.services.ops.leadership import Lead, Leadership
 from segb_server.backend.services.views.delta import Delta
 from segb_server.backend.services.views.lane_hosting import LaneHosting
-from segb_server.backend.services.views.lanes import Batch, Turns, ViewLane, ViewTime
+from segb_server.backend.services.views.lanes import SMALL_BATCH_TRIPLES, Batch, ViewLane, ViewTime
 from segb_server.backend.services.views.preparing import ViewBuilds
 from segb_server.backend.services.views.progress import ViewsProgress
 from segb_server.backend.services.views.seen_terms import SeenTerms
 from segb_server.backend.services.views.steps import MAX_QUEUED_TRIPLES, Marker, StepQueue, Unread
+from segb_server.backend.services.views.turns import Turns
 from segb_server.backend.services.views.view import ForgetsErased, KeptView
 from segb_server.backend.services.writing.applier import Applied, Applier
 from segb_server.backend.services.writing.journal import Journal
@@ -57,9 +58,10 @@ MAX_REST_SECONDS = 0.25
 # posts than the views keep up with at half the time, they take the time they need, and the posts slow down
 # rather than the views falling behind without end.
 NO_REST_BEHIND_SECONDS = 1.0
-# The keeper waits for every view to take a batch before it hands out the next (they then share one batch's
-# answers from the store), but no longer than this once one view is through with it: a view slow on a large
-# batch is let go, and the others take the next posts meanwhile (`lanes.py`).
+# The keeper waits for every view to take a small batch before it hands out the next (they then share one batch's
+# answers from the store), but no longer than this once one view is through with it: a view slow on it is let go,
+# and the others take the next posts meanwhile (`lanes.py`). After a large batch it does not wait at all: the
+# next posts go ahead of it in the views that let them.
 HOLD_SECONDS = 0.5
 EMBEDDED_VIEW_TURNS = 2  # views updated side by side on the embedded store (see the module's docstring)
 FOLLOW_SECONDS = 0.25  # how often a following process reads how far the leader's views are
@@ -291,8 +293,9 @@ class ViewKeeper:
         fresh = frozenset[str]()
         if self.seen_terms is not None:  # registered before any view reads the batch
             fresh = self.seen_terms.admit(quads, steps[0].entries[0].sequence, through)
+        largest = max(len(step.quads) for step in steps)
         batch = Batch(steps[0].entries[0].sequence, through, len(steps), len(quads), fresh, time.monotonic(),
-                      Delta.of(quads, fresh))  # fmt: skip
+                      Delta.of(quads, fresh), largest)  # fmt: skip
         held = self._held_triples()
         lanes = [lane for lane in self.lanes.values() if not self.builds.is_set_aside(lane.view)]
         in_step = [lane for lane in lanes if lane.in_step()]
@@ -300,7 +303,8 @@ class ViewKeeper:
             behind = lane not in in_step and held + len(quads) > LANES_MAX_HELD_TRIPLES
             lane.hand(batch.without_triples() if behind else batch)
         self.progress.dispatched = through
-        self._wait_in_step(in_step, through)
+        if largest <= SMALL_BATCH_TRIPLES:  # after an import (a large step) the next posts are handed out at once:
+            self._wait_in_step(in_step, through)  # they go ahead of it in the views that let them (`lanes.py`)
 
     def _held_triples(self) -> int:
         """The triples of the batches the lanes hold (each batch once: the lanes share it)."""

@@ -10,9 +10,10 @@ import time
 
 from segb_server.backend.services.errors import OUTAGES
 from segb_server.backend.services.views.delta import Delta
-from segb_server.backend.services.views.lanes import Batch, Turns, ViewLane
+from segb_server.backend.services.views.lanes import Batch, ViewLane
 from segb_server.backend.services.views.preparing import ViewBuilds
 from segb_server.backend.services.views.progress import ViewsProgress
+from segb_server.backend.services.views.turns import Turns
 from segb_server.backend.services.writing.applier import applied_steps
 from segb_server.backend.services.writing.journal import Journal
 

@@ -13,9 +13,12 @@ How many views update at once is bounded by `Turns`: on the embedded store the v
 CPU, which the posts need too. A batch of a few triples (a post) has a turn of its own beside the others, so
 fresh posts never wait for two views that chew on an import; and the views waiting for a turn take it cheapest
 first (their batch's triples times what a triple has cost that view so far), so a cheap report is not kept behind
-an expensive index. The reports come before the other views (`served_first`): their lag is what readiness and
-the ingest's pace watch, and a robot's messages are in the conversations report within a second of their 201
-even right after a large import, while the graph, the timeline and the findings are still taking it in."""
+an expensive index (`turns.py`: the reports come before the other views).
+
+A view whose rows are read again from the store key by key (`GoesAhead`: the reports, the timeline's kinds and
+the SPARQL rules) does not make the posts behind a large batch wait for it: they go ahead of it while it waits
+for its turn, and between the parts of its keys. A robot's messages are then in the conversations report within
+a second of their 201 even right after a large import."""
 
 from __future__ import annotations
 
@@ -24,13 +27,15 @@ import logging
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
+from contextlib import nullcontext
 from dataclasses import dataclass, field
+from functools import partial
 from typing import TYPE_CHECKING, Protocol
 
-from segb_server.backend.services.reports.folder import FOLDER as REPORTS_FOLDER
 from segb_server.backend.services.views.delta import Delta
+from segb_server.backend.services.views.turns import Turns, served_first
+from segb_server.backend.services.views.view import GoesAhead
 from segb_server.backend.services.writing.cursor import Cursor
 
 if TYPE_CHECKING:
@@ -45,6 +50,8 @@ SMALL_BATCH_TRIPLES = 5_000
 # that an update of a lane catching up ends about as soon as one in step.
 MERGED_STEPS = 100
 OUTAGE_RETRY_SECONDS = 1.0
+# How long a lane with a large batch waits for a general turn before it looks again for posts to take ahead.
+AHEAD_WAIT_SECONDS = 0.05
 
 
 @dataclass(eq=False)
@@ -61,9 +68,10 @@ class Batch:
     fresh: frozenset[str]
     since: float
     delta: Delta | None
+    largest: int = 0  # the triples of its largest step: an import is one large step, posts are many small ones
 
     def without_triples(self) -> Batch:
-        return Batch(self.first, self.through, self.steps, self.triples, self.fresh, self.since, None)
+        return Batch(self.first, self.through, self.steps, self.triples, self.fresh, self.since, None, self.largest)
 
 
 @dataclass
@@ -80,53 +88,6 @@ class ViewTime:
     def cost_of(self, triples: int) -> float:
         """What `triples` more are likely to take this view (seconds; 0 for a view that has taken none yet)."""
         return self.wall / self.triples * triples if self.triples else 0.0
-
-
-def served_first(view: str) -> bool:
-    """Whether a view's lane goes before the others waiting for a general turn: the reports'."""
-    return view.startswith(f"{REPORTS_FOLDER}/")
-
-
-class Turns:
-    """Who may update a view now: `general` turns for any batch and `express` turns for small ones only. Of the
-    lanes waiting, those served first before the others, then the cheapest batch."""
-
-    def __init__(self, general: int, express: int) -> None:
-        self._free = {"general": general, "express": express}
-        self._waiting: list[tuple[int, float, int, bool]] = []  # (rank, cost, arrival, small)
-        self._arrivals = itertools.count()
-        self._changed = threading.Condition()
-
-    @contextmanager
-    def turn(self, cost: float, small: bool, first: bool = False) -> Iterator[None]:
-        with self._changed:
-            me = (0 if first else 1, cost, next(self._arrivals), small)
-            self._waiting.append(me)
-            self._changed.wait_for(lambda: self._kind_for(me) is not None)
-            kind = self._kind_for(me)
-            assert kind is not None
-            self._waiting.remove(me)
-            self._free[kind] -= 1
-        try:
-            yield
-        finally:
-            with self._changed:
-                self._free[kind] += 1
-                self._changed.notify_all()
-
-    def _kind_for(self, me: tuple[int, float, int, bool]) -> str | None:
-        """The turn `me` may take now: an express one when it is small and one is free; else a general one when
-        one is free and no waiter for a general turn is ranked before it, has a cheaper batch, or the same and
-        came first."""
-        if me[3] and self._free["express"] > 0:
-            return "express"
-        if self._free["general"] <= 0:
-            return None
-        express_free = self._free["express"] > 0
-        for other in self._waiting:
-            if other is not me and not (other[3] and express_free) and other[:3] < me[:3]:
-                return None
-        return "general"
 
 
 class LaneHost(Protocol):
@@ -156,6 +117,10 @@ class ViewLane:
     _busy: bool = False
     _changed: threading.Condition = field(default_factory=threading.Condition)
     _thread: threading.Thread | None = None
+    _goes_ahead: bool = False  # the view lets posts go ahead of a large batch (`GoesAhead`)
+
+    def __post_init__(self) -> None:
+        self._goes_ahead = isinstance(self.view, GoesAhead)  # once: a protocol's isinstance reads every member
 
     @property
     def name(self) -> str:
@@ -239,6 +204,8 @@ class ViewLane:
                 return None
             count = steps = 0
             for batch in self._batches:
+                if count and self._goes_ahead and _large(batch) != _large(self._batches[0]):
+                    break  # a large batch alone: the posts behind it go ahead of it (`_update_letting_ahead`)
                 count, steps = count + 1, steps + batch.steps
                 if steps >= MERGED_STEPS:
                     break
@@ -253,8 +220,12 @@ class ViewLane:
                 delta = self._delta_of(taken)
                 cost = self.spent.cost_of(triples)
                 small, first = triples <= SMALL_BATCH_TRIPLES, served_first(self.name)
-                with self.host.turns.turn(cost, small=small, first=first):
-                    wall, cpu = _timed(self.view.update, delta, taken[-1].through)
+                through = taken[-1].through
+                if self._goes_ahead and any(map(_large, taken)):
+                    wall, cpu, through = self._update_letting_ahead(delta, taken, cost, first)
+                else:
+                    with self.host.turns.turn(cost, small=small, first=first):
+                        wall, cpu = _timed(self.view.update, delta, through)
             except Exception as error:
                 if self.host.lane_failed(self, error):  # an outage: the same batches again, in a while
                     if self.host.stopping.wait(OUTAGE_RETRY_SECONDS):
@@ -265,11 +236,62 @@ class ViewLane:
             spent = self.spent
             spent.cpu, spent.wall = spent.cpu + cpu, spent.wall + wall
             spent.batches, spent.triples = spent.batches + 1, spent.triples + triples
-            self.cursor.advance(taken[-1].through)
+            self.cursor.advance(through)
             if logger.isEnabledFor(logging.DEBUG):
-                logger.debug("view %s through entry %d: %d triples in %.3f s", self.name, taken[-1].through, triples,
+                logger.debug("view %s through entry %d: %d triples in %.3f s", self.name, through, triples,
                              wall)  # fmt: skip
             return True
+
+    # --- small batches ahead of a large one ------------------------------------------------------------
+
+    def _update_letting_ahead(
+        self, delta: Delta, taken: list[Batch], cost: float, first: bool
+    ) -> tuple[float, float, int]:
+        """Update the view with a large batch while the small ones queued behind it go ahead: while it waits for a
+        general turn, and between the parts of its keys. Its position then includes both (they are all in the
+        store, and the view reads its keys from there: `GoesAhead`)."""
+        view = self.view
+        assert isinstance(view, GoesAhead)
+        ahead = [taken[-1].through]
+
+        def let_ahead(turn: bool) -> int:
+            queued = self._queued_small(taken)
+            if queued:
+                with self.host.turns.turn(0.0, small=True, first=first) if turn else nullcontext():
+                    wall, cpu = _timed(view.update_ahead, self._delta_of(queued), queued[-1].through)
+                self._taken_ahead(queued, wall, cpu)
+                ahead.append(queued[-1].through)
+            return max(ahead)
+
+        ticket = self.host.turns.ticket(cost, small=False, first=first)
+        while True:
+            let_ahead(turn=True)
+            with self.host.turns.turn_within(ticket, AHEAD_WAIT_SECONDS) as granted:
+                if granted:
+                    wall, cpu = _timed(partial(view.update_in_parts, between=partial(let_ahead, turn=False)),
+                                       delta, taken[-1].through)  # fmt: skip
+                    return wall, cpu, max(ahead)
+
+    def _queued_small(self, taken: list[Batch]) -> list[Batch]:
+        """The batches of posts queued right behind `taken` (as many steps as one update takes)."""
+        with self._changed:
+            queued: list[Batch] = []
+            for batch in itertools.islice(self._batches, len(taken), None):
+                if _large(batch) or sum(b.steps for b in queued) + batch.steps > MERGED_STEPS:
+                    break
+                queued.append(batch)
+            return queued
+
+    def _taken_ahead(self, queued: list[Batch], wall: float, cpu: float) -> None:
+        with self._changed:
+            done = {id(batch) for batch in queued}
+            self._batches = deque(batch for batch in self._batches if id(batch) not in done)
+        spent = self.spent
+        spent.cpu, spent.wall = spent.cpu + cpu, spent.wall + wall
+        spent.batches, spent.triples = spent.batches + 1, spent.triples + sum(batch.triples for batch in queued)
+        if logger.isEnabledFor(logging.DEBUG):
+            logger.debug("view %s: entries %d-%d ahead of a large batch, in %.3f s", self.name, queued[0].first,
+                         queued[-1].through, wall)  # fmt: skip
 
     def _delta_of(self, taken: list[Batch]) -> Delta:
         """One batch's own `Delta` (shared with the lanes in step), or the batches' triples as one."""
@@ -279,6 +301,11 @@ class ViewLane:
         return Delta.of(
             [quad for delta in deltas for quad in delta.quads], frozenset().union(*(d.fresh for d in deltas))
         )
+
+
+def _large(batch: Batch) -> bool:
+    """Whether the batch holds a large step (an import), which the posts behind it may go ahead of."""
+    return batch.largest > SMALL_BATCH_TRIPLES
 
 
 def _timed(update: Callable[[Delta, int], None], delta: Delta, through: int) -> tuple[float, float]:

@@ -3,6 +3,7 @@ erasure must remove."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Protocol, runtime_checkable
 
 from segb_server.backend.services.views.delta import Delta
@@ -41,3 +42,19 @@ class ForgetsErased(Protocol):
 
     def forget_erased(self) -> None:
         """Called after every view was cleared for an erasure, before they are built again."""
+
+
+@runtime_checkable
+class GoesAhead(Protocol):
+    """A view whose update reads every key a batch touches again from the store, which holds every batch applied:
+    its rows are the same whichever order it takes batches in. A post's batch may then be taken before a large
+    import queued ahead of it, so the post's rows need not wait for the import's (the view's position, what
+    `stored_through` and its lag say, moves only once the import is taken in too)."""
+
+    def update_ahead(self, delta: Delta, through: int) -> None:
+        """`update` for a batch taken before an earlier one: its rows, not the view's position."""
+
+    def update_in_parts(self, delta: Delta, through: int, between: Callable[[], int]) -> None:
+        """`update`, its keys written a part at a time, calling `between()` before each part and after the last
+        (where batches queued behind go ahead); it answers the last entry taken ahead so far, which the view then
+        includes too."""

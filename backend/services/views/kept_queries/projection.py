@@ -13,7 +13,7 @@ from __future__ import annotations
 import hashlib
 import logging
 import re
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import replace
 
 from segb_server.backend.services.sparql.catalog import PARAMETER_VARIABLE_PREFIX, CatalogQuery
@@ -155,6 +155,19 @@ class KeptQuery:
         self.rows.forget_erased()
 
     def update(self, delta: Delta, through: int) -> None:
+        self._update(delta, through, record=True, between=None)
+
+    def update_ahead(self, delta: Delta, through: int) -> None:
+        self._update(delta, through, record=False, between=None)
+
+    def update_in_parts(self, delta: Delta, through: int, between: Callable[[], int]) -> None:
+        self._update(delta, through, record=True, between=between)
+
+    def _update(self, delta: Delta, through: int, *, record: bool, between: Callable[[], int] | None) -> None:
+        """The rows of the keys `delta` touches read again; `record`: the view now includes the journal through
+        `through` (not for a batch taken ahead of an earlier one); `between`: the keys written a part at a time
+        (each part its own transaction), calling it before each part and after the last; it answers the last
+        entry taken ahead meanwhile, which the view then includes too."""
         # The store is asked everything first, then the rows change in one transaction: the reports of a remote
         # store are updated side by side, and take turns only for writing.
         replaced: list[str] = []
@@ -165,7 +178,11 @@ class KeptQuery:
             # triple named it) and has none now: nothing to evaluate, replace or announce.
             units = self._needed.possible(delta, self.keys.units(delta, self.store))
             replaced = sorted(unit for unit in units if self._may_have_rows(delta, unit))
-            rows = self._evaluate(replaced) if replaced else {}
+            if between is not None and len(replaced) > VALUES_PER_QUERY:
+                self._replace_in_parts(replaced, through, between)
+                replaced = []
+            else:
+                rows = self._evaluate(replaced) if replaced else {}
             facets = [(pairs.facet, new) for pairs in self.facets if (new := pairs.new_pairs(delta, self.store))]
         with self.rows.db.writing():
             if replaced:
@@ -174,8 +191,24 @@ class KeptQuery:
                 self.rows.add_facets(self.layout, facet.parameter, pairs)
             if delta:
                 self.rows.prune_changes(CHANGES_KEPT)
-            self.rows.set_state(self.name, self.fingerprint, through)
+            if record:
+                self.rows.set_state(self.name, self.fingerprint, through)
         if replaced:
+            self.rows.changed.notify()
+        # Batches go ahead only once this one's rows are written: rows read before a later batch's triples were
+        # applied must not be written over that batch's.
+        ahead = between() if between is not None else through
+        if ahead > through:
+            with self.rows.db.writing():
+                self.rows.set_state(self.name, self.fingerprint, ahead)
+
+    def _replace_in_parts(self, units: list[str], through: int, between: Callable[[], int]) -> None:
+        for start in range(0, len(units), VALUES_PER_QUERY):
+            between()
+            part = units[start : start + VALUES_PER_QUERY]
+            rows = self._evaluate(part)
+            with self.rows.db.writing():
+                self.rows.replace(self.layout, part, rows, through)
             self.rows.changed.notify()
 
     def _may_have_rows(self, delta: Delta, unit: str) -> bool:
