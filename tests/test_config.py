@@ -77,6 +77,6 @@ def test_where_the_views_are_kept_by_default_depends_on_the_store(
 
 
 def test_posts_wait_for_the_views_sooner_on_the_embedded_store() -> None:
-    assert make_settings(store="oxigraph").effective_views_max_lag_seconds == 1.5
+    assert make_settings(store="oxigraph").effective_views_max_lag_seconds == 1.3
     assert make_settings(store="virtuoso", virtuoso_password="a-password").effective_views_max_lag_seconds == 2.0
     assert make_settings(store="sparql", views_max_lag_seconds=0.0).effective_views_max_lag_seconds == 0.0
