@@ -118,6 +118,7 @@ class ViewLane:
     _changed: threading.Condition = field(default_factory=threading.Condition)
     _thread: threading.Thread | None = None
     _goes_ahead: bool = False  # the view lets posts go ahead of a large batch (`GoesAhead`)
+    _ahead_through: int = 0  # the last entry taken ahead of a large batch not yet taken in (kept past a retry)
 
     def __post_init__(self) -> None:
         self._goes_ahead = isinstance(self.view, GoesAhead)  # once: a protocol's isinstance reads every member
@@ -160,6 +161,7 @@ class ViewLane:
     def drop(self, through: int) -> None:
         """Forget the batches a build through `through` includes (their last entry at or before it)."""
         with self._changed:
+            self._ahead_through = 0 if self._ahead_through <= through else self._ahead_through
             self._batches = deque(batch for batch in self._batches if batch.through > through)
             self._changed.notify_all()
 
@@ -252,7 +254,7 @@ class ViewLane:
         store, and the view reads its keys from there: `GoesAhead`)."""
         view = self.view
         assert isinstance(view, GoesAhead)
-        ahead = [taken[-1].through]
+        ahead = [taken[-1].through, self._ahead_through]
 
         def let_ahead(turn: bool) -> int:
             queued = self._queued_small(taken)
@@ -261,6 +263,7 @@ class ViewLane:
                     wall, cpu = _timed(view.update_ahead, self._delta_of(queued), queued[-1].through)
                 self._taken_ahead(queued, wall, cpu)
                 ahead.append(queued[-1].through)
+                self._ahead_through = max(ahead)
             return max(ahead)
 
         ticket = self.host.turns.ticket(cost, small=False, first=first)
@@ -270,6 +273,7 @@ class ViewLane:
                 if granted:
                     wall, cpu = _timed(partial(view.update_in_parts, between=partial(let_ahead, turn=False)),
                                        delta, taken[-1].through)  # fmt: skip
+                    self._ahead_through = 0  # the view's position now includes them
                     return wall, cpu, max(ahead)
 
     def _queued_small(self, taken: list[Batch]) -> list[Batch]:
