@@ -76,6 +76,11 @@ def store_through_3() -> OxigraphStore:
     return store
 
 
+def keeper_of(tmp_path: Path, *views: RecordingView) -> ViewKeeper:
+    """A keeper of `views` over an empty store, its journal in `tmp_path`."""
+    return ViewKeeper(OxigraphStore("urn:x:graph"), Journal(SqliteDatabase(tmp_path / "journal.sqlite3")), list(views))
+
+
 def step(sequence: int) -> Applied:
     return Applied([JournalEntry(sequence, "post", b"")], [], cleared=False)
 
@@ -83,7 +88,7 @@ def step(sequence: int) -> Applied:
 def test_a_rest_is_cut_short_for_a_step_that_waited_through_a_slow_batch_and_kept_otherwise(tmp_path: Path) -> None:
     assert BATCH_SECONDS > START_WITHIN_SECONDS and BATCH_SECONDS > MAX_REST_SECONDS
     view = RecordingView("slow", seconds=BATCH_SECONDS)
-    projector = ViewKeeper(OxigraphStore("urn:x:graph"), Journal(SqliteDatabase(tmp_path / "journal.sqlite3")), [view])
+    projector = keeper_of(tmp_path, view)
     projector.start()
     try:
         projector.on_applied(step(1))
@@ -249,7 +254,7 @@ def test_a_view_whose_rebuild_after_a_failed_update_fails_is_set_aside_and_built
     aside and built again later, the views' thread living on."""
     view = FailingBuild("broken", failures=1)
     view.built, view.failing = [0], True  # built before; every update fails
-    keeper = ViewKeeper(OxigraphStore("urn:x:graph"), Journal(SqliteDatabase(tmp_path / "journal.sqlite3")), [view])
+    keeper = keeper_of(tmp_path, view)
     keeper.start()
     try:
         keeper.on_applied(step(1))
@@ -370,7 +375,7 @@ def test_posts_go_ahead_of_a_large_batch_in_a_view_that_reads_its_keys_from_the_
     """A report busy with an import takes the posts that came after it ahead of it: their rows need not wait for
     the import's. Its position moves past them only once the import is taken in too."""
     report = AheadView("reports/conversations")
-    keeper = ViewKeeper(OxigraphStore("urn:x:graph"), Journal(SqliteDatabase(tmp_path / "journal.sqlite3")), [report])
+    keeper = keeper_of(tmp_path, report)
     keeper.start()
     try:
         keeper.on_applied(large_step(1))
@@ -393,7 +398,7 @@ def test_posts_go_ahead_of_a_large_batch_in_a_view_that_reads_its_keys_from_the_
 def test_a_view_that_follows_its_batches_in_order_takes_no_post_ahead_of_a_large_batch(tmp_path: Path) -> None:
     """The graph index and the SHACL findings follow the triples of each batch: the posts wait behind the import."""
     graph = GatedView("graph")
-    keeper = ViewKeeper(OxigraphStore("urn:x:graph"), Journal(SqliteDatabase(tmp_path / "journal.sqlite3")), [graph])
+    keeper = keeper_of(tmp_path, graph)
     keeper.start()
     try:
         keeper.on_applied(large_step(1))
