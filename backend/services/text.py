@@ -13,6 +13,8 @@ from pydantic import BaseModel, model_validator
 
 def surrogate_at(value: str) -> int | None:
     """Where an unpaired surrogate stands in `value`, or None when it is valid Unicode text."""
+    if value.isascii():  # known without reading it: a whole re-published graph is checked in no time
+        return None
     try:
         value.encode("utf-8")
     except UnicodeEncodeError as error:

@@ -53,3 +53,35 @@ def test_blocks_of_a_post_with_withheld_triples_are_remembered_only_if_the_journ
     memory.recorded(reading, account, 0, 1, lambda _digests: False)
 
     assert memory.read(DOCUMENT, RdfFormat.TURTLE, account, 0, 1000).held == 0
+
+
+def blocks_of(text: str) -> list[str]:
+    return [block for block in text.removeprefix(HEADER).split("\n\n") if block.strip()]
+
+
+def test_a_remembered_block_sent_twice_makes_the_document_read_whole() -> None:
+    memory, account = BlockMemory(), ("ari", ())
+    remembered(memory, account)
+    twice = (HEADER + "\n\n" + "\n\n".join([*blocks_of(DOCUMENT.decode()), blocks_of(DOCUMENT.decode())[0]])).encode()
+
+    reading = memory.read(twice, RdfFormat.TURTLE, account, 0, 1000)
+
+    assert (reading.held, len(reading.quads)) == (0, TRIPLES + 2)
+
+
+def test_a_changed_block_replaces_its_subject_s_old_one_and_a_left_out_block_is_not_counted() -> None:
+    memory, account = BlockMemory(), ("ari", ())
+    remembered(memory, account)
+    changed = DOCUMENT.replace(b'ex:p "0"', b'ex:p "zero"')
+    reading = memory.read(changed, RdfFormat.TURTLE, account, 0, 1000)
+    assert (reading.held, len(reading.quads)) == (TRIPLES - 2, 2)  # the changed block alone is parsed
+    memory.recorded(reading, account, 0, 0, lambda _digests: True)
+
+    # The block of ex:s3 left out, the changed block sent again: six triples skipped, none parsed.
+    without_last = (HEADER + "\n\n" + "\n\n".join(blocks_of(changed.decode())[:3])).encode()
+    again = memory.read(without_last, RdfFormat.TURTLE, account, 0, 1000)
+
+    assert (again.held, len(again.quads)) == (TRIPLES - 2, 0)
+    # The old bytes of ex:s0 are forgotten: sent again, they are parsed (and the new ones are not skipped with them).
+    old = memory.read(DOCUMENT, RdfFormat.TURTLE, account, 0, 1000)
+    assert (old.held, len(old.quads)) == (TRIPLES - 2, 2)

@@ -63,7 +63,9 @@ def split_document(data: bytes) -> Split | None:
     if len(pieces) == 1:
         return None
     header = pieces[0] if _is_header(pieces[0]) else b""
-    blocks = [piece for piece in pieces[1:] if piece] if header else [piece for piece in pieces if piece]
+    blocks = pieces[1:] if header else pieces
+    if b"" in blocks:  # more than one blank line in a row: rare, so looked for before a copy is made
+        blocks = [piece for piece in blocks if piece]
     return Split(header, blocks, block_keys(blocks))
 
 

@@ -6,6 +6,7 @@ import json
 import zlib
 from dataclasses import dataclass
 
+import jiter
 from pydantic import ConfigDict, Field, ValidationError
 from pyoxigraph import RdfFormat
 
@@ -76,12 +77,17 @@ def decode_ingest_body(
     body = decompress(body, content_encoding, max_decompressed_bytes)
     if kind == "application/json":
         request = _parse_json_body(body)
-        if not request.ttl_content.strip():
+        if _blank(request.ttl_content):
             raise EmptyPayload("'ttl_content' is empty; send a Turtle document.")
         return RdfPayload(request.ttl_content.encode("utf-8"), RdfFormat.TURTLE, request.user)
-    if not body.strip():
+    if _blank(body):
         raise EmptyPayload("The request body is empty; send an RDF document.")
     return RdfPayload(body, RAW_RDF_TYPES[kind], claimed_user)
+
+
+def _blank(text: str | bytes) -> bool:
+    # Not `text.strip()`: that copies a whole re-sent graph only to see it is not empty.
+    return not text or text.isspace()
 
 
 def decompress(body: bytes, content_encoding: str | None, limit: int) -> bytes:
@@ -109,7 +115,7 @@ def decompress(body: bytes, content_encoding: str | None, limit: int) -> bytes:
 
 def _parse_json_body(body: bytes) -> IngestRequest:
     try:
-        document = json.loads(body, object_pairs_hook=_without_duplicate_keys)
+        document = json_document(body)
     except (UnicodeDecodeError, json.JSONDecodeError) as error:
         raise InvalidPayload(f"The body is not valid JSON: {error}.") from None
     except RecursionError:
@@ -124,6 +130,16 @@ def _parse_json_body(body: bytes) -> IngestRequest:
     for field in ("ttl_content", "user"):
         check_text(field, getattr(request, field))
     return request
+
+
+def json_document(body: bytes) -> object:
+    """The JSON document, a key given twice at any depth refused. jiter reads a robot's whole re-sent graph in
+    half the time of the standard library; whatever it refuses (a key twice, bad syntax, a lone surrogate, UTF-16)
+    is read again by the standard library, whose refusals name the problem as the API always has."""
+    try:
+        return jiter.from_json(body, catch_duplicate_keys=True)
+    except ValueError:
+        return json.loads(body, object_pairs_hook=_without_duplicate_keys)
 
 
 def check_text(field: str, value: str | None) -> None:

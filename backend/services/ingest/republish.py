@@ -18,7 +18,8 @@ import threading
 from collections import OrderedDict
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field, replace
-from operator import attrgetter
+from itertools import compress
+from operator import not_
 
 from pyoxigraph import Quad, RdfFormat
 
@@ -40,13 +41,48 @@ MAX_ACCOUNTS = 256
 Account = tuple[str, tuple[str, ...]]  # who posts, with which write scopes
 
 
-@dataclass
+@dataclass(frozen=True)
 class Remembered:
-    """An account's blocks known recorded, in one journal epoch, under one header."""
+    """An account's blocks known recorded, in one journal epoch, under one header: one block a subject (a
+    subject's new block replaces its old one), their triples counted in all. Replaced whole on every change, so
+    a post reading it holds one consistent state without taking the lock."""
 
     epoch: int
     context: bytes
     blocks: dict[object, BlockFacts] = field(default_factory=dict)
+    subjects: dict[int, object] = field(default_factory=dict)  # a block's subject (its hash) → its key
+    triples: int = 0  # distinct triples of all the blocks
+    quads: int = 0  # triples as written in them
+
+    @classmethod
+    def of(cls, epoch: int, context: bytes, blocks: dict[object, BlockFacts]) -> Remembered:
+        return cls(epoch, context).with_blocks(blocks)
+
+    def with_blocks(self, learned: dict[object, BlockFacts]) -> Remembered:
+        blocks, subjects = dict(self.blocks), dict(self.subjects)
+        triples, quads = self.triples, self.quads
+        for key, facts in learned.items():
+            if key in blocks:
+                continue
+            replaced = subjects.get(facts.subject)
+            if replaced is not None:  # the subject's block changed: its old bytes would repeat its triples
+                old = blocks.pop(replaced)
+                triples, quads = triples - old.triples, quads - old.quads
+            blocks[key], subjects[facts.subject] = facts, key
+            triples, quads = triples + facts.triples, quads + facts.quads
+        return Remembered(self.epoch, self.context, blocks, subjects, triples, quads)
+
+
+@dataclass(frozen=True)
+class HeldSubjects:
+    """The subjects of the blocks a post re-sent and had skipped: the remembered ones but those it left out."""
+
+    subjects: dict[int, object]
+    left_out: set[object]
+
+    def __contains__(self, subject: object) -> bool:
+        key = self.subjects.get(subject) if isinstance(subject, int) else None
+        return key is not None and key not in self.left_out
 
 
 @dataclass
@@ -57,13 +93,14 @@ class Reading:
     parsed: bytes  # the text the quads came from (blank nodes are looked for in it)
     held: int = 0  # distinct triples of the skipped blocks
     held_quads: int = 0  # triples as written in them (a block may state one twice)
-    held_subjects: set[int] = field(default_factory=set)
+    held_subjects: HeldSubjects | None = None
     split: Split | None = None
     learned: dict[object, BlockFacts] = field(default_factory=dict)  # blocks read alone, to remember if recorded
 
     def overlaps(self, quads: list[Quad]) -> bool:
         """Whether a parsed triple has the subject of a skipped block (the counts could then share triples)."""
-        return bool(self.held_subjects) and any(subject_hash(q.subject) in self.held_subjects for q in quads)
+        held = self.held_subjects
+        return held is not None and any(subject_hash(q.subject) in held for q in quads)
 
 
 class BlockMemory:
@@ -81,12 +118,13 @@ class BlockMemory:
         if split is None or context is None:
             return _whole(data, rdf_format, max_triples)
         remembered = self._accounts.get(account)
-        current = remembered is not None and (remembered.epoch, remembered.context) == (epoch, split.context)
-        found = list(map(remembered.blocks.get, split.keys)) if remembered is not None and current else []
         reading = Reading([], b"", split=split)
-        if not _held(reading, [facts for facts in found if facts is not None], max_triples):
+        if remembered is None or (remembered.epoch, remembered.context) != (epoch, split.context):
+            fresh = list(range(len(split.keys)))
+        elif (unknown := _held(reading, remembered, max_triples)) is None:
             return _whole(data, rdf_format, max_triples)
-        fresh = [index for index, facts in enumerate(found) if facts is None] if found else list(range(len(split.keys)))
+        else:
+            fresh = unknown
         blocks = [split.blocks[index] for index in fresh]
         alone = [read_block(split.header, block, context) for block in blocks]
         if any(quads is None for quads in alone):  # not cut at statements' ends: the document is read whole
@@ -125,10 +163,11 @@ class BlockMemory:
                     self._accounts[account] = remembered  # a later post already remembers a later epoch's
                     return
                 remembered = Remembered(epoch, split.context)
-            remembered.blocks.update(learned)
+            remembered = remembered.with_blocks(learned)
             if len(remembered.blocks) > 2 * len(split.keys) + 64:  # blocks the robot no longer sends
                 sent = set(split.keys)
-                remembered.blocks = {key: facts for key, facts in remembered.blocks.items() if key in sent}
+                kept = {key: facts for key, facts in remembered.blocks.items() if key in sent}
+                remembered = Remembered.of(epoch, split.context, kept)
             self._accounts[account] = remembered
             self._bound()
 
@@ -144,14 +183,23 @@ class BlockMemory:
             total -= len(oldest.blocks)
 
 
-def _held(reading: Reading, held: list[BlockFacts], max_triples: int) -> bool:
-    """Count the skipped blocks into `reading`; False when two share a subject (their triples could overlap)."""
-    reading.held_subjects = set(map(attrgetter("subject"), held))
-    if len(reading.held_subjects) < len(held):
-        return False
-    reading.held, reading.held_quads = sum(map(attrgetter("triples"), held)), sum(map(attrgetter("quads"), held))
+def _held(reading: Reading, remembered: Remembered, max_triples: int) -> list[int] | None:
+    """Count the remembered blocks the post re-sent into `reading` as skipped; the indexes of the blocks it did
+    not, or None when it sends a remembered block twice (the document is then read whole). Done with a mask and
+    set operations, never a loop over the blocks: a re-publish holds tens of thousands."""
+    keys = reading.split.keys if reading.split is not None else []
+    fresh = list(compress(range(len(keys)), map(not_, map(remembered.blocks.__contains__, keys))))
+    sent = set(keys)
+    if len(sent) - len({keys[index] for index in fresh}) < len(keys) - len(fresh):
+        return None  # a remembered block sent twice
+    # Blocks the robot changed since, or no longer sends: most re-publishes leave out none.
+    left_out = set() if len(keys) - len(fresh) == len(remembered.blocks) else remembered.blocks.keys() - sent
+    gone = [remembered.blocks[key] for key in left_out]
+    reading.held = remembered.triples - sum(facts.triples for facts in gone)
+    reading.held_quads = remembered.quads - sum(facts.quads for facts in gone)
+    reading.held_subjects = HeldSubjects(remembered.subjects, left_out) if reading.held else None
     _refuse_past(max_triples, reading.held)
-    return True
+    return fresh
 
 
 def _refuse_past(max_triples: int, triples: int) -> None:
