@@ -67,6 +67,7 @@ def worker_app() -> FastAPI:
 
     settings = Settings()
     configure_logging(settings)
+    _name_process(api_listener(settings).what)
     app = create_app(settings, views_home=views_home(settings, workers=True))
     tune_collector()
     return app
@@ -225,6 +226,7 @@ def serve_api_workers(settings: Settings, *, with_ui: bool, listening: Callable[
 def _serve_ui() -> None:
     settings = Settings()
     configure_logging(settings)
+    _name_process(ui_listener(settings).what)
     uvicorn.Server(_ui_config(settings)).run()
 
 
@@ -282,9 +284,31 @@ class _OneProcessTwoServers(logging.Filter):
             return True
         if str(record.msg).startswith(_PROCESS_LINES):
             return name == self.first
-        record.msg = f"{name}: {record.msg}"
-        record.__dict__.pop("color_message", None)  # uvicorn's coloured copy of the message, without the name
+        _say_which(record, name)
         return True
+
+
+class _OneServer(logging.Filter):
+    """With --workers, the UI and each API worker run in processes of their own, whose uvicorn lines are alike
+    ("Started server process [pid]" three times for two workers and the UI): each says which server it runs."""
+
+    def __init__(self, name: str) -> None:
+        super().__init__()
+        self.name = name
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        _say_which(record, self.name)
+        return True
+
+
+def _name_process(name: str) -> None:
+    """Prefix the uvicorn lines of this process, which runs the one server `name`, with that name."""
+    logging.getLogger("uvicorn.error").addFilter(_OneServer(name))
+
+
+def _say_which(record: logging.LogRecord, name: str) -> None:
+    record.msg = f"{name}: {record.msg}"
+    record.__dict__.pop("color_message", None)  # uvicorn's coloured copy of the message, without the name
 
 
 async def _serve_together(servers: list[_NamedServer]) -> None:

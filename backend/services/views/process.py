@@ -240,12 +240,14 @@ def keep_views(settings: Settings, channel: ChannelAddress | None) -> None:
     views = build_views(settings, store, Catalog(settings.sparql_dir, required=REQUIRED_QUERIES))
     writes = WritePath.open(settings, store, views.kept, views.housekeeping, Role.VIEWS)
     try:
-        writes.start()
-        tune_collector()
-        while True:
+        # Told to stop while opening (a server stopped as it starts): no build of every view is begun only to be
+        # waited for, past the STOP_SECONDS after which this process is killed.
+        if not stop.is_set():
+            writes.start()
+            tune_collector()
+        while not stop.is_set():
             status.write(writes.keeper.outage, writes.keeper.last_error, writes.keeper.building_all)
-            if stop.wait(HEARTBEAT_SECONDS):
-                break
+            stop.wait(HEARTBEAT_SECONDS)
     finally:
         writes.close()  # the batch under way is finished first
         views.close()
