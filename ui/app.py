@@ -19,6 +19,7 @@ from segb_server.ui.badges import BadgeCache, BadgeMiddleware
 from segb_server.ui.csrf import CsrfCookieMiddleware, CsrfRejected
 from segb_server.ui.forms import BadForm
 from segb_server.ui.pages import error_page
+from segb_server.ui.query_params import BadFilter
 from segb_server.ui.routes import (
     clear,
     export,
@@ -106,6 +107,9 @@ def _install_error_pages(app: FastAPI) -> None:
         title = "Page not found" if error.status_code == 404 else "Request failed"
         return error_page(request, error.status_code, title, str(error.detail))
 
+    async def bad_filter(request: Request, error: Exception) -> Response:
+        return error_page(request, 422, "A filter is not understood", str(error))
+
     async def refused_form(request: Request, error: Exception) -> Response:
         status = 403 if isinstance(error, CsrfRejected) else 400
         return error_page(request, status, "Form refused", str(error), form_refused=True)
@@ -117,6 +121,7 @@ def _install_error_pages(app: FastAPI) -> None:
     app.add_exception_handler(Exception, unexpected)
     app.add_exception_handler(CsrfRejected, refused_form)
     app.add_exception_handler(BadForm, refused_form)
+    app.add_exception_handler(BadFilter, bad_filter)
     app.add_exception_handler(BackendUnavailable, backend_down)
     app.add_exception_handler(BackendError, backend_refused)
     app.add_exception_handler(StarletteHTTPException, http_error)

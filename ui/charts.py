@@ -9,6 +9,8 @@ import hashlib
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from datetime import datetime
+from itertools import pairwise
+from statistics import median
 
 from segb_server.ui.display import parse_time, short_iri, when
 from segb_server.ui.namesakes import Name
@@ -35,15 +37,15 @@ def colour_for(category: str) -> str:
 
 @dataclass(frozen=True)
 class Point:
-    x: float
-    y: float
+    x: float  # percent of the plot's width
+    y: float  # pixels from the chart's top
     title: str
 
 
 @dataclass(frozen=True)
 class Series:
     """One emotion category of one target. `runs` are its readings that follow each other with no reading of
-    another category of the same target between them: only those are joined by a line."""
+    another category of the same target and no long gap between them: only those are joined by a line."""
 
     name: str
     colour: str
@@ -51,104 +53,121 @@ class Series:
     runs: list[list[Point]] = field(default_factory=list)
 
     @property
-    def path(self) -> str:
-        """An SVG path of one subpath per run of two readings or more (empty when there is none)."""
-        return " ".join(
-            " ".join(f"{'M' if i == 0 else 'L'}{p.x:.1f},{p.y:.1f}" for i, p in enumerate(run))
-            for run in self.runs
-            if len(run) > 1
-        )
+    def segments(self) -> list[tuple[Point, Point]]:
+        """The lines drawn: one between each two readings that follow each other in a run."""
+        return [pair for run in self.runs for pair in pairwise(run)]
 
 
 @dataclass(frozen=True)
 class Tick:
-    position: float
+    position: float  # pixels from the top on the intensity scale, percent of the plot's width on the time scale
     label: str
     anchor: str = "middle"  # SVG text-anchor: the first and last time labels are kept inside the plot
+
+    @property
+    def lines(self) -> list[str]:
+        """A time label with its date is drawn on two lines (date, then time), so three fit a phone's width."""
+        return self.label.split(" ")
 
 
 @dataclass
 class LineChart:
-    """Intensity (0 to 1) over time for one participant, one series per emotion category. Its sizes are in the
-    drawing's own units: the page draws every chart at one width, so its text has one size however many there are."""
+    """Intensity (0 to 1) over time for one participant, one series per emotion category. Across, places are
+    percentages of the plot's width; down, and for text, pixels: the chart stretches to its column while its
+    text keeps one size, the same on a phone and on a desktop, beside nineteen other charts or alone. The plot's
+    side margins, where the scale's labels go, are the `.chart-plot` padding in segb.css."""
 
     title: str
     subject: str
     kind: str
     qualifier: str = ""  # what tells this participant from a namesake
-    width: int = 540  # about a column's width on a desktop screen: text is drawn near its own size
-    height: int = 226
-    left: int = 44
-    right: int = 16
+    lines: bool = True  # False: dots only (the chart leaves readings out, so a line could pass over one unseen)
     top: int = 30  # room for the scale's name above it
-    bottom: int = 34
+    plot_height: int = 160
+    bottom: int = 30  # room for the time labels; a second line when they carry the date
     series: list[Series] = field(default_factory=list)
     x_ticks: list[Tick] = field(default_factory=list)
     y_ticks: list[Tick] = field(default_factory=list)
 
     @property
-    def plot_right(self) -> int:
-        return self.width - self.right
+    def plot_bottom(self) -> int:
+        return self.top + self.plot_height
 
     @property
-    def plot_bottom(self) -> int:
-        return self.height - self.bottom
+    def height(self) -> int:
+        return self.plot_bottom + self.bottom
 
 
-def emotion_charts(rows: Iterable[Mapping[str, object]], names: Mapping[str, Name]) -> list[LineChart]:
-    """One chart per emotion target (human or robot), in the order targets first appear."""
+# A line stops where two readings of one target are more than this many times its usual (median) interval apart.
+LONG_GAP = 3
+
+
+def emotion_charts(
+    rows: Iterable[Mapping[str, object]], names: Mapping[str, Name], lines: bool = True
+) -> list[LineChart]:
+    """One chart per emotion target (human or robot), in the order targets first appear; `lines=False` for
+    dots only."""
     readings: dict[str, list[Mapping[str, object]]] = {}
     for row in rows:
         if row.get("time") and isinstance(row.get("intensity"), int | float) and row.get("target"):
             readings.setdefault(str(row["target"]), []).append(row)
-    return [_emotion_chart(target, target_rows, names.get(target)) for target, target_rows in readings.items()]
+    return [_emotion_chart(target, target_rows, names.get(target), lines) for target, target_rows in readings.items()]
 
 
-def _emotion_chart(target: str, rows: list[Mapping[str, object]], name: Name | None) -> LineChart:
+def _emotion_chart(target: str, rows: list[Mapping[str, object]], name: Name | None, lines: bool) -> LineChart:
     first = rows[0]
     name = name or Name(str(first.get("targetName") or short_iri(target)))
     chart = LineChart(
-        title=name.label, subject=target, kind=str(first.get("targetKind") or "other"), qualifier=name.qualifier
+        title=name.label,
+        subject=target,
+        kind=str(first.get("targetKind") or "other"),
+        qualifier=name.qualifier,
+        lines=lines,
     )
-    times = [parse_time(str(row["time"])) for row in rows]
-    start, end = min(times), max(times)
+    read = sorted(((parse_time(str(row["time"])), row) for row in rows), key=lambda pair: pair[0])
+    start, end = read[0][0], read[-1][0]
     span = (end - start).total_seconds()
-    plot_width = chart.plot_right - chart.left
-    plot_height = chart.plot_bottom - chart.top
 
     def x_of(moment: datetime) -> float:
-        if span == 0:
-            return chart.left + plot_width / 2
-        return chart.left + plot_width * (moment - start).total_seconds() / span
+        return 50.0 if span == 0 else 100 * (moment - start).total_seconds() / span
 
     def y_of(value: float) -> float:
-        return chart.plot_bottom - plot_height * max(0.0, min(1.0, value))
+        return chart.plot_bottom - chart.plot_height * max(0.0, min(1.0, value))
 
     by_category: dict[str, list[Point]] = {}
     runs: dict[str, list[list[Point]]] = {}
-    previous = None
-    for row, moment in sorted(zip(rows, times, strict=True), key=lambda pair: pair[1]):
+    previous: tuple[datetime, str] | None = None
+    long_gap = LONG_GAP * _usual_interval([moment for moment, _ in read])
+    for moment, row in read:
         category = str(row.get("category") or "unknown")
         intensity = float(row["intensity"])  # type: ignore[arg-type]
         point = Point(x_of(moment), y_of(intensity), _reading_title(row, category, intensity))
         by_category.setdefault(category, []).append(point)
-        if category != previous:  # a reading of another category in between: the line stops there
+        # A reading of another category in between, or a long silence: the line stops there.
+        joined = previous is not None and previous[1] == category and (moment - previous[0]).total_seconds() <= long_gap
+        if not (lines and joined):
             runs.setdefault(category, []).append([])
         runs[category][-1].append(point)
-        previous = category
+        previous = (moment, category)
     chart.series = [
         Series(category, colour_for(category), points, runs[category])
         for category, points in sorted(by_category.items())
     ]
     chart.y_ticks = [Tick(y_of(value), f"{value:g}") for value in (0.0, 0.25, 0.5, 0.75, 1.0)]
-    moments = [start] if span == 0 else [start + (end - start) * (i / 3) for i in range(4)]
     with_date = start.date() != end.date()
-    anchors = ["middle"] if span == 0 else ["start", "middle", "middle", "end"]
+    chart.bottom += 14 if with_date else 0
+    middle = start + (end - start) / 2
+    places = [(start, "middle")] if span == 0 else [(start, "start"), (middle, "middle"), (end, "end")]
     chart.x_ticks = [
-        Tick(x_of(moment), when(moment.isoformat(), with_date=with_date), anchor)
-        for moment, anchor in zip(moments, anchors, strict=True)
+        Tick(x_of(moment), when(moment.isoformat(), with_date=with_date), anchor) for moment, anchor in places
     ]
     return chart
+
+
+def _usual_interval(moments: list[datetime]) -> float:
+    """The median time, in seconds, between a target's readings that follow each other at different times."""
+    gaps = [(later - earlier).total_seconds() for earlier, later in pairwise(moments) if later > earlier]
+    return median(gaps) if gaps else 0.0
 
 
 def _reading_title(row: Mapping[str, object], category: str, intensity: float) -> str:

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import re
+from collections.abc import Collection, Mapping
 from datetime import UTC, datetime
+from typing import Any
 from urllib.parse import urlencode
 
 from segb_server.ui.vocabulary import current
@@ -44,6 +46,16 @@ def id_words(iri: object) -> str:
     """The words of an unnamed resource's IRI without its generated id: `…/observation-041730fd31af` →
     `observation`, `…/human_utterance_2a72abaa3d6798df` → `human utterance`."""
     return re.sub(r"[-_]+", " ", _GENERATED.sub("", iri_tail(iri))).strip() or "unnamed"
+
+
+def unnamed_label(node: Mapping[str, Any], robots: Collection[str]) -> str:
+    """A node the log gave no name (`id`, `kind`, `time`) by its robot, kind and time: `ARI's state at
+    10:00:03.500` (`State at …` when several robots or none are around it), else by `id_words`."""
+    kind = str(node.get("kind") or "")
+    if kind == "other" or not node.get("time"):
+        return id_words(node["id"])
+    whose = f"{', '.join(sorted(robots, key=str.casefold))}'s {kind}" if len(robots) == 1 else kind.capitalize()
+    return f"{whose} at {when(node['time'], with_date=False)}"
 
 
 def when(value: object, with_date: bool = True) -> str:

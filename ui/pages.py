@@ -14,11 +14,13 @@ from segb_server.backend.services.direction_controls import page_environment
 from segb_server.ui.api_client import BackendClient, BackendError
 from segb_server.ui.csrf import csrf_token
 from segb_server.ui.display import FILTERS
+from segb_server.ui.query_params import TIME_EXAMPLE, TIME_PATTERN
 from segb_server.ui.session import TOKEN_COOKIE, Viewer
 
 # Every page shows a robot's direction controls as marks (direction_controls.py), whatever its template writes.
 TEMPLATES = Jinja2Templates(env=page_environment(FileSystemLoader(Path(__file__).parent / "templates")))
 TEMPLATES.env.filters.update(FILTERS)
+TEMPLATES.env.globals.update(time_pattern=TIME_PATTERN, time_example=TIME_EXAMPLE)  # the time filters' inputs
 
 AUDITOR = ("auditor",)
 ADMIN = ("admin",)

@@ -96,7 +96,8 @@ def view_of(name: str, table: Mapping[str, Any], names: Mapping[str, Name]) -> d
     if name == "conversations":
         view["threads"] = conversation_threads(rows)
     elif name in ("emotion-timeline", "extreme-emotions"):
-        view["charts"] = emotion_charts(rows, names)
+        # The extreme emotions leave the weaker readings out: a line there could pass over one unseen.
+        view["charts"] = emotion_charts(rows, names, lines=name == "emotion-timeline")
     elif name == "ml-usage":
         view["bar_chart"] = model_usage_chart(rows, names)
     elif name == "robot-states":

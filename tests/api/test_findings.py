@@ -18,7 +18,9 @@ from semantic_log_generator import ActivityKind
 
 from segb_server.backend.api.app import create_app
 from segb_server.backend.config import PACKAGE_ROOT
+from segb_server.examples.emotion_mirror.driver import play
 from segb_server.examples.emotion_mirror.mission import EmotionMirrorMission, RobotConfig
+from segb_server.examples.emotion_mirror.script import default_script
 from tests.conftest import make_settings
 from tests.support.in_process import InProcess, Server, http, publisher_for
 from tests.support.live_server import LiveServer
@@ -29,6 +31,7 @@ from tests.support.settle import settle
 SHIPPED = PACKAGE_ROOT / "rules"
 ARI = "https://example.org/segb/robots/ari/v1/robot_ari"
 TIAGO = "https://example.org/segb/robots/tiago/v1/robot_tiago"
+MIRROR = "https://example.org/segb/robots/mirror/v1/robot_mirror"
 
 
 def all_findings(server: Server, **params: str) -> list[dict[str, object]]:
@@ -90,6 +93,38 @@ def test_the_demo_is_clean_but_for_what_it_shows_on_purpose(tmp_path: Path) -> N
     assert len(grouped["reply-without-model"]) == 5  # ARI's four replies and TIAGo's one
     (anger,) = [f for f in found if f["rule"] == "strong-negative-emotion"]
     assert anger["robot"] == TIAGO and anger["values"]["category"] == "anger" and anger["values"]["intensity"] == 0.88
+
+
+# Each reply with the human whose message it answers (derived from), and their name.
+ANSWERED = """SELECT ?reply ?human ?name WHERE {
+  ?reply <http://www.w3.org/ns/prov#wasDerivedFrom>/<http://schema.org/sender> ?human .
+  ?human <http://xmlns.com/foaf/0.1/firstName> ?name }"""
+
+
+def test_a_reply_without_the_model_names_the_human_it_answers() -> None:
+    """What `segb serve --demo` shows once the example robot has run: every reply of ARI, TIAGo and the emotion
+    mirror is the fallback, and each finding names the human whose message the reply answers, in its `human`
+    and in its sentence."""
+    with InProcess(create_app(make_settings(), demo=True)) as live:
+        settle(live.client)
+        mission = EmotionMirrorMission.start(
+            RobotConfig(), human_id="maria", human_name="Maria",
+            publish=lambda logger: logger.publish(publisher_for(live.client, "mirror")),
+        )  # fmt: skip
+        assert list(play(mission, default_script()))
+        settle(live.client)
+        found = all_findings(live.client, rule="reply-without-model")
+        answer = http(live.client, "POST", "/sparql", params={"format": "json"}, content=ANSWERED,
+                      headers={"Content-Type": "application/sparql-query"})  # fmt: skip
+    assert answer.status_code == 200, answer.text
+    answered = {row["reply"]["value"]: row for row in answer.json()["results"]["bindings"]}
+    assert len(found) == 9  # ARI's four replies, TIAGo's one, the mirror's four
+    assert {f["robot"] for f in found} == {ARI, TIAGO, MIRROR}
+    for finding in found:
+        human = answered[str(finding["focus"])]
+        assert finding["human"] == human["human"]["value"]
+        assert f" to {human['name']['value']}: “" in str(finding["message"])
+    assert {answered[str(f["focus"])]["name"]["value"] for f in found} == {"Maria", "Carlos"}
 
 
 def test_a_reply_written_by_the_model_is_no_finding(api: httpx.Client) -> None:

@@ -193,7 +193,7 @@ def test_resources_read_together_equal_each_read_alone(api: InProcess, store: St
     assert described[str(scenario.iris["juan_1"])]["label"] == "Where is the pharmacy?"
 
 
-EXPLAINED_KINDS = ("activity", "message", "emotion", "state")  # what /explain tells the story of
+EXPLAINED_KINDS = ("activity", "message", "emotion", "state", "shared-event")  # what /explain tells the story of
 
 
 def test_explanations_from_the_graph_index_equal_those_from_the_store(
@@ -221,6 +221,7 @@ def test_explanations_from_the_graph_index_equal_those_from_the_store(
         assert from_index.explain(iri) == expected, iri
         stories.append(expected)
     assert sum(bool(story["steps"]) for story in stories) > 50
+    assert any(story["seed"]["kind"] == "shared-event" and story["steps"] for story in stories)
     assert any(model["version"] for story in stories for step in story["steps"] for model in step["models"])
     assert any(emotion["confidence"] for story in stories for step in story["steps"] for emotion in step["emotions"])
     index.close()

@@ -24,3 +24,12 @@ def test_pages_follow_one_another_newest_first(server: InProcess) -> None:  # no
 def test_a_bad_offset_is_refused_with_422(server: InProcess, offset: object) -> None:  # noqa: F811
     answer = read_log(server, offset=offset)
     assert answer.status_code == 422 and answer.json()["error"] == "invalid_request"
+
+
+def test_every_page_counts_the_matching_entries(server: InProcess) -> None:  # noqa: F811
+    for n in range(7):
+        server.get("/healthz/live", headers={"X-Request-ID": f"counted-{n}"})
+    for offset in (0, 3, 6, 9):
+        body = read_log(server, contains="counted-", limit=3, offset=offset).json()
+        assert (body["total"], body["more"]) == (7, False)
+    assert read_log(server, contains="no entry holds this").json()["total"] == 0

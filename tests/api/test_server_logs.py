@@ -104,7 +104,7 @@ def test_the_answer_is_a_superset_of_the_reference_shape(server: InProcess) -> N
     answer = read_log(server, limit=2000, level="info", contains="  REF-SHAPE-  ")
     assert answer.status_code == 200, answer.text
     body = answer.json()
-    assert REFERENCE_KEYS | {"source"} == set(body)
+    assert REFERENCE_KEYS | {"source", "total", "more"} == set(body)
     assert body["log_file"] is None  # kept in memory: there is no file
     assert body["filters"] == {"limit": 2000, "level": "INFO", "contains": "REF-SHAPE-"}  # normalised, trimmed
     assert body["count"] == len(body["entries"]) == 3

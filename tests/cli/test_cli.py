@@ -228,6 +228,24 @@ def test_check_prints_each_finding_with_its_line_and_fails_on_violations(tmp_pat
     assert '<testsuite name="segb check' in junit.stdout and 'failures="3"' in junit.stdout
 
 
+def test_check_names_the_human_a_reply_without_the_model_answers(tmp_path: Path) -> None:
+    """The example robot's log as it publishes it: its four fallback replies each answer Maria."""
+    from segb_server.examples.emotion_mirror.driver import play
+    from segb_server.examples.emotion_mirror.mission import EmotionMirrorMission, RobotConfig
+    from segb_server.examples.emotion_mirror.script import default_script
+
+    mission = EmotionMirrorMission.start(RobotConfig(), human_id="maria", human_name="Maria")
+    replies = [step.iri for step in play(mission, default_script()) if step.kind == "reply"]
+    log = tmp_path / "mirror.ttl"
+    log.write_text(mission.logger.graph.serialize(format="turtle"), encoding="utf-8")
+    result = segb("check", str(log), "--format", "json")
+    assert result.returncode == 0, result.stderr
+    found = [f for f in json.loads(result.stdout)["findings"] if f["rule"] == "reply-without-model"]
+    assert sorted(f["focus"] for f in found) == sorted(map(str, replies)) and len(found) == 4
+    assert {f["human"] for f in found} == {str(mission.human)}
+    assert all(f["message"].startswith("Emotion Mirror replied without using any model to Maria: ") for f in found)
+
+
 def test_check_passes_a_clean_log_and_takes_a_folder_of_rules(tmp_path: Path) -> None:
     clean = tmp_path / "clean.ttl"
     clean.write_text('<https://example.org/r> a <http://kb.openrobots.org#Robot> ; <http://schema.org/name> "R" .\n')

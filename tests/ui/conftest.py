@@ -77,18 +77,49 @@ def open_at(browser: Any) -> Iterator[Callable[[str], Any]]:
     contexts: list[Any] = []
 
     def opener(viewport: str) -> Any:
-        width, height = VIEWPORTS[viewport]
-        context = browser.new_context(viewport={"width": width, "height": height})
-        contexts.append(context)
-        page = context.new_page()
-        errors: list[str] = []
-        page.on("pageerror", lambda error: errors.append(str(error)))
-        page.console_errors = errors
-        return page
+        return new_page(browser, contexts, VIEWPORTS[viewport])
 
     yield opener
     for context in contexts:
         context.close()
+
+
+def new_page(browser: Any, contexts: list[Any], size: tuple[int, int], pixel_ratio: float = 1) -> Any:
+    """A page in a context of its own (added to `contexts`, to close), its script errors kept in
+    `page.console_errors`."""
+    width, height = size
+    context = browser.new_context(viewport={"width": width, "height": height}, device_scale_factor=pixel_ratio)
+    contexts.append(context)
+    page = context.new_page()
+    errors: list[str] = []
+    page.on("pageerror", lambda error: errors.append(str(error)))
+    page.console_errors = errors
+    return page
+
+
+def words_split(page: Any, selector: str) -> list[str]:
+    """The words inside `selector`'s elements that the page breaks across lines (a text hidden but for screen
+    readers excepted)."""
+    return page.evaluate(SPLIT_WORDS, selector)  # type: ignore[no-any-return]
+
+
+SPLIT_WORDS = """(selector) => {
+  const split = [];
+  for (const element of document.querySelectorAll(selector)) {
+    const walker = document.createTreeWalker(element, NodeFilter.SHOW_TEXT);
+    for (let node = walker.nextNode(); node; node = walker.nextNode()) {
+      if (node.parentElement.closest(".visually-hidden")) continue;
+      for (const match of node.data.matchAll(/\\S+/g)) {
+        const range = document.createRange();
+        range.setStart(node, match.index);
+        range.setEnd(node, match.index + match[0].length);
+        const lines = new Set([...range.getClientRects()].map(rect => Math.round(rect.top)));
+        if (lines.size > 1) split.push(match[0]);
+      }
+    }
+  }
+  return split;
+}"""
 
 
 def visit(page: Any, url: str) -> None:

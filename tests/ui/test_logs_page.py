@@ -9,6 +9,7 @@ import httpx
 import pytest
 
 from tests.conftest import UiStack
+from tests.ui.conftest import axe_violations
 
 pytestmark = pytest.mark.browser
 
@@ -23,7 +24,7 @@ def test_logs_page_lists_requests_and_filters_them(ui_stack: UiStack, page) -> N
 
     page.goto(f"{ui_stack.ui_url}/logs")
     assert page.locator("h1").inner_text() == "Server log"
-    assert page.locator("nav a[aria-current=page]").inner_text() == "Logs"
+    assert page.locator("nav.sidebar a[aria-current=page]").inner_text() == "Logs"
     rows = page.locator("#server-log tbody tr")
     levels = set(rows.evaluate_all("rows => rows.map(r => r.dataset.level)"))
     assert levels == {"INFO", "WARNING"}
@@ -62,3 +63,30 @@ def test_a_page_size_past_the_largest_shows_the_largest(ui_stack: UiStack, page)
 def test_a_page_further_than_the_log_is_read_back_is_explained(ui_stack: UiStack, page) -> None:  # type: ignore[no-untyped-def]
     page.goto(f"{ui_stack.ui_url}/logs?offset=5000")
     assert "offset" in page.locator(".banner-error").inner_text()
+
+
+def test_the_log_counts_its_entries_and_links_each_page(ui_stack: UiStack, page) -> None:  # type: ignore[no-untyped-def]
+    for n in range(153):
+        httpx.get(f"{ui_stack.api_url}/healthz/live", headers={"X-Request-ID": f"counted-{n:03d}"})
+
+    def ids() -> list[str]:  # each cell shows the first characters of its request id, its title the whole id
+        return page.locator("#server-log tbody tr code.request-id").evaluate_all("ids => ids.map(id => id.title)")
+
+    page.goto(f"{ui_stack.ui_url}/logs?contains=counted-")
+    assert page.locator(".card-sub").inner_text() == "1\u201350 of 153, newest first"
+    numbers = page.locator(".pager .page-numbers a")
+    assert numbers.all_text_contents() == ["Page 1", "Page 2", "Page 3", "Page 4"]
+    assert page.locator(".pager a[aria-current=page]").text_content() == "Page 1"
+    assert page.evaluate("document.documentElement.scrollHeight") < 6000
+
+    page.click(".pager .page-numbers a:has-text('Page 3')")
+    page.wait_for_load_state()
+    assert page.locator(".card-sub").inner_text() == "101\u2013150 of 153, newest first"
+    assert ids() == [f"counted-{n:03d}" for n in range(52, 2, -1)]
+    assert page.locator(".pager a[aria-current=page]").text_content() == "Page 3"
+    assert axe_violations(page) == []
+    page.click(".pager a:has-text('Older 50')")
+    page.wait_for_load_state()
+    assert page.locator(".card-sub").inner_text() == "151\u2013153 of 153, newest first"
+    assert ids() == ["counted-002", "counted-001", "counted-000"]
+    assert page.console_errors == []

@@ -124,6 +124,7 @@ def test_the_model_usage_report_says_what_a_score_measured(demo_stack: UiStack, 
     training = page.locator("#report-ml-usage .evaluation").all_inner_texts()
     assert training and all(re.fullmatch(r"(Accuracy|evaluation score) 0\.71", text) for text in training)
     assert "· score" not in page.locator("#report-ml-usage").inner_text()
+    assert axe_violations(page) == []
 
 
 LANES_AND_NODES = """() => {

@@ -10,7 +10,7 @@ from typing import Any
 import pytest
 
 from tests.conftest import UiStack
-from tests.ui.conftest import REPORTS, demo_pages, screenshot, visit
+from tests.ui.conftest import REPORTS, demo_pages, screenshot, visit, words_split
 
 pytestmark = pytest.mark.browser
 
@@ -37,23 +37,6 @@ OVERFLOWING = """() => {
 }"""
 
 # Header words drawn on more than one line.
-SPLIT_WORDS = """() => {
-  const split = [];
-  for (const th of document.querySelectorAll("th")) {
-    const walker = document.createTreeWalker(th, NodeFilter.SHOW_TEXT);
-    for (let node = walker.nextNode(); node; node = walker.nextNode()) {
-      for (const match of node.data.matchAll(/\\S+/g)) {
-        const range = document.createRange();
-        range.setStart(node, match.index);
-        range.setEnd(node, match.index + match[0].length);
-        const lines = new Set([...range.getClientRects()].map(rect => Math.round(rect.top)));
-        if (lines.size > 1) split.push(match[0]);
-      }
-    }
-  }
-  return split;
-}"""
-
 # Listed rows hidden by a box that scrolls up and down (or clips) instead of growing.
 CLIPPED_ROWS = """() => [...document.querySelectorAll("#content tbody tr")].filter(row => {
   const box = row.getBoundingClientRect();
@@ -86,7 +69,7 @@ def test_no_table_header_breaks_inside_a_word(demo_stack: UiStack, open_at: Any,
     found = {}
     for path in demo_pages(demo_stack):
         visit(page, demo_stack.ui_url + path)
-        split = page.evaluate(SPLIT_WORDS)
+        split = words_split(page, "th")
         if split:
             found[path] = split
     assert found == {}
@@ -100,7 +83,7 @@ def test_the_header_check_finds_a_split_word(demo_stack: UiStack, open_at: Any) 
       document.querySelectorAll("table.data").forEach(t => { t.style.minWidth = "0"; t.style.width = "300px"; });
       document.querySelectorAll("th").forEach(th => { th.style.overflowWrap = "anywhere"; });
     }""")
-    assert page.evaluate(SPLIT_WORDS)
+    assert words_split(page, "th")
 
 
 @pytest.mark.parametrize("media", ["screen", "print"])
@@ -146,10 +129,10 @@ def test_chart_time_labels_stay_inside_their_charts(demo_stack: UiStack, open_at
     page = open_at("desktop")
     page.goto(f"{demo_stack.ui_url}/reports/emotion-timeline")
     outside = page.evaluate("""() => [...document.querySelectorAll("svg.emotion-chart")].flatMap(svg => {
-      const width = svg.viewBox.baseVal.width;
+      const chart = svg.closest("figure").getBoundingClientRect();
       return [...svg.querySelectorAll("text")].filter(t => {
-        const box = t.getBBox();
-        return box.x < 0 || box.x + box.width > width;
+        const box = t.getBoundingClientRect();
+        return box.left < chart.left || box.right > chart.right;
       }).map(t => t.textContent);
     })""")
     assert outside == []

@@ -15,7 +15,7 @@ from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse, JSONResponse, Response
 
 from segb_server.ui.choices import participant_choices
-from segb_server.ui.display import id_words, is_unnamed, when
+from segb_server.ui.display import id_words, is_unnamed, unnamed_label
 from segb_server.ui.findings_marks import findings_about
 from segb_server.ui.namesakes import tell_apart
 from segb_server.ui.pages import backend, render, token
@@ -27,6 +27,7 @@ router = APIRouter()
 
 GRAPH_PARAMETERS = ("limit", "robot", "since", "until", "types", "focus", "depth", "q")
 NAMED_KINDS = ("robot", "human", "model")  # kinds whose namesakes are told apart in the drawing
+NEIGHBOURS = 400  # nodes of a neighbourhood drawn to name a node's unnamed neighbours (as Expand draws it)
 
 
 def graph_parameters(request: Request) -> dict[str, str]:
@@ -55,20 +56,19 @@ async def graph_page(request: Request) -> HTMLResponse:
     )
 
 
-async def _relay_json(request: Request, path: str, params: dict[str, str]) -> Response:
-    """The API's JSON as is: thousands of nodes need not be decoded and encoded again here."""
-    answer = await backend(request).request("GET", path, token=token(request), params=params)
-    return Response(answer.content, media_type="application/json")
-
-
 @router.get("/kg-graph/data")
 async def graph_data(request: Request) -> Response:
+    return JSONResponse(await readable_graph(request, graph_parameters(request)))
+
+
+async def readable_graph(request: Request, params: dict[str, str]) -> dict[str, Any]:
+    """The API's drawing for these parameters, labelled with `with_readable_labels`."""
     client, user_token = backend(request), token(request)
     answer, participants = await asyncio.gather(
-        client.get_json("/graph", token=user_token, params=graph_parameters(request)),
+        client.get_json("/graph", token=user_token, params=params),
         client.get_json("/reports/participants", token=user_token, params={"limit": MAX_PAIRS}),
     )
-    return JSONResponse(with_readable_labels(answer, robots_met(participants["rows"])))
+    return with_readable_labels(answer, robots_met(participants["rows"]))
 
 
 def with_readable_labels(graph: dict[str, Any], humans_met: Mapping[str, str]) -> dict[str, Any]:
@@ -81,7 +81,7 @@ def with_readable_labels(graph: dict[str, Any], humans_met: Mapping[str, str]) -
     hints = {**{iri: ", ".join(sorted(robots, key=str.casefold)) for iri, robots in robots_of.items()}, **humans_met}
     for node in nodes.values():
         if node.get("kind") != "robot" and is_unnamed(node["id"], node.get("label")):
-            node["label"] = _unnamed_label(node, robots_of.get(node["id"], set()))
+            node["label"] = unnamed_label(node, robots_of.get(node["id"], set()))
     people = [node for node in nodes.values() if node.get("kind") in NAMED_KINDS]
     names = tell_apart({node["id"]: str(node.get("label") or node["id"]) for node in people}, hints)
     for node in people:
@@ -112,17 +112,27 @@ def _namespace(iri: str) -> str:
     return iri.rstrip("/#").rsplit("/", 1)[0]
 
 
-def _unnamed_label(node: Mapping[str, Any], robots: set[str]) -> str:
-    kind = str(node.get("kind") or "")
-    if kind == "other" or not node.get("time"):
-        return id_words(node["id"])
-    whose = f"{', '.join(sorted(robots, key=str.casefold))}'s {kind}" if len(robots) == 1 else kind.capitalize()
-    return f"{whose} at {when(node['time'], with_date=False)}"
-
-
 @router.get("/kg-graph/resource")
 async def graph_resource(request: Request, iri: str) -> Response:
-    return await _relay_json(request, "/resource", {"iri": iri})
+    """The node's statements for the details panel. A linked resource the log gave no name (a message, a state,
+    an emotion reading) gets the label its node has in a drawing of the neighbourhood (its text; its robot, kind
+    and time), else the words of its IRI: the panel links by name, the IRI in the link's tooltip."""
+    resource = await backend(request).get_json("/resource", token=token(request), params={"iri": iri})
+    unnamed = [s for s in resource["outgoing"] + resource["incoming"] if _links_unnamed(s)]
+    if unnamed:
+        around = await readable_graph(request, {"focus": iri, "depth": "1", "limit": str(NEIGHBOURS)})
+        labels = {node["id"]: node["label"] for node in around["nodes"]}
+        for statement in unnamed:
+            statement["label"] = labels.get(statement["value"]) or id_words(statement["value"])
+    return JSONResponse(resource)
+
+
+def _links_unnamed(statement: Mapping[str, Any]) -> bool:
+    """A link to a logged resource whose label is only its IRI's last part (not a vocabulary term: `oro:Human`)."""
+    value = str(statement["value"])
+    return (
+        not statement["is_literal"] and is_unnamed(value, statement.get("label")) and current().compact(value) == value
+    )
 
 
 @router.get("/explain", response_class=HTMLResponse)
@@ -131,7 +141,21 @@ async def explain_page(request: Request, iri: str = "") -> HTMLResponse:
     if iri.strip():
         story = await backend(request).get_json("/explain", token=token(request), params={"iri": iri.strip()})
     marks = await findings_about(request, _story_iris(story)) if story else {}
+    if story:
+        story["seed"]["label"] = _seed_name(story)
     return render(request, "explain.html", {"iri": iri, "story": story, "marks": marks})
+
+
+def _seed_name(story: dict[str, Any]) -> str:
+    """The story's subject as the drawing labels it: a state or an emotion reading the log gave no name by its
+    robot, kind and time (`ARI's state at 10:00:03.500`), never by its IRI."""
+    seed = story["seed"]
+    if seed.get("kind") == "activity" or not is_unnamed(seed["iri"], seed.get("label")):
+        return str(seed.get("label"))
+    steps = [step for step in story.get("steps", []) if step.get("role") == "seed"]
+    robots = {str(step["robot"]["label"]) for step in steps if step.get("robot")}
+    time = seed.get("time") or next((step["time"] for step in steps if step.get("time")), None)
+    return unnamed_label({"id": seed["iri"], "kind": seed.get("kind"), "time": time}, robots)
 
 
 def _story_iris(story: dict[str, Any]) -> list[object]:

@@ -2,13 +2,15 @@
  * /kg-graph/resource, merges neighbourhoods on demand. Every text from the graph is set with textContent:
  * robot-supplied strings never become markup.
  *
- * Readable at first sight: every lane in use is in view and carries its name beside its nodes, robots,
- * humans and messages carry labels at the starting zoom (the others on hover, keyboard focus or when zoomed
- * in), "other" nodes (property values, observations, parameters) are folded away behind a toggle, and the
- * drawing starts at a zoom where labels can be read. Edges to robots, humans and models (hubs standing
- * outside time, with an edge to much of the drawing) are faded; a node hovered, focused or selected lights
- * its edges up with their labels, a label left out where it would cover another. The drawing takes keyboard
- * focus: arrows move between nodes, Enter opens one. */
+ * Readable at first sight: every lane in use has nodes in view and is named on a band that holds its nodes,
+ * robots, humans and messages carry labels at the starting zoom (the others on hover, keyboard focus or when
+ * zoomed in), "other" nodes (property values, observations, parameters) are folded away behind a toggle, and
+ * the drawing starts at a zoom where labels can be read. Edges to robots, humans and models (hubs standing
+ * outside time, with an edge to much of the drawing) are faint, drawn under the others and unlabelled; a node
+ * hovered, focused or selected lights its edges up. An edge's label is drawn only where it covers no node and
+ * no other label (lit edges first), so zooming in shows more of them and never a pile. Fit fills the box:
+ * lanes move apart in a tall box, time columns in a wide one. The drawing takes keyboard focus: arrows move
+ * between nodes, Enter opens one. */
 (function () {
   "use strict";
 
@@ -24,13 +26,20 @@
   };
   // A lane: up to SUB_ROWS rows SUB_ROW apart, then room for its name above the next lane (model units).
   var LANE_HEIGHT = 110, SUB_ROW = 26, SUB_ROWS = 3, STEP = 42, NODE_SIZE = 18;
+  // A lane's band begins this far below the previous lane's last row (model units); its name sits above its rows.
+  var BAND_MARGIN = 10, ROWS_SPAN = (SUB_ROWS - 1) * SUB_ROW + NODE_SIZE;
   var MAX_LANE_STRETCH = 4; // Fit may stretch lanes apart up to this much to fill a tall box
+  var MAX_COLUMN_STRETCH = 3; // and time columns apart up to this much to fill a wide one
   var FIT_PADDING = 30; // pixels left around the whole drawing
+  var FIRST_ZOOM = 1.5; // a small drawing starts no larger than this
   // Room a labelled node needs in its row before the next one (model units); others need one time step.
-  var GAP = { robot: 170, human: 170, message: 170 };
+  var GAP = { robot: 170, human: 170, message: 170, model: 2 * STEP };
   // Robots, humans and models stand outside time, in columns where their lanes begin.
   var STANDING = { robot: true, human: true, model: true };
+  var LABELLED = { robot: true, human: true, message: true }; // labelled at the starting zoom, right of the node
   var READABLE_ZOOM = 0.75; // below this the labels of robots, humans and messages are too small to read
+  var EDGE_LABEL_ZOOM = 0.9; // below this edges' labels (9 units) are too small to read: none is drawn
+  var NODE_LABEL_ZOOM = 1.25; // nor, below this, the labels (11 units) of activities, emotions, states…
   var LARGE = 400; // above this many nodes, drawing favours speed over detail (straight edges, no edge labels)
   var ARROWS = { ArrowRight: [1, 0], ArrowLeft: [-1, 0], ArrowDown: [0, 1], ArrowUp: [0, -1] };
 
@@ -55,7 +64,10 @@
   var focused = null;
   var laneItems = {};
   var laneSlots = {}; // kind → its place from the top among the lanes drawn now
+  var laneHalves = {}; // kind → half the height of its tallest node (model units)
   var laneHeight = LANE_HEIGHT;
+  var columnScale = 1; // time columns' spread: Fit widens it in a wide box
+  var labelsAt = -1; // the labelLevel() the labels were last placed at
   var viewNote = "";
 
   function fetchJson(url) {
@@ -159,8 +171,8 @@
   }
 
   function nodeElement(n, place) {
-    var node = { group: "nodes", data: { id: n.id, label: n.label, kind: n.kind, time: n.time || "", row: place.row },
-      position: { x: place.x, y: place.row * SUB_ROW } };
+    var node = { group: "nodes", data: { id: n.id, label: n.label, kind: n.kind, time: n.time || "", row: place.row,
+      x0: place.x }, position: { x: columnX(place.x), y: place.row * SUB_ROW } };
     if (n.kind === "other" && !showOther.checked) { node.classes = "folded"; }
     return node;
   }
@@ -169,60 +181,160 @@
     return { group: "edges", data: { id: e.id, source: e.source, target: e.target, label: e.label } };
   }
 
+  /* A node's x from its place in time: Fit spreads the time columns (x ≥ 0) in a wide box; the columns of the
+   * robots, humans and models left of them keep the room their labels need. */
+  function columnX(x0) { return x0 > 0 ? x0 * columnScale : x0; }
+
   /* Lanes top to bottom, only those with a node drawn, each laneHeight below the last: a kind filtered out or
-   * folded leaves no empty band. Nodes keep their rows; only their heights change. */
+   * folded leaves no empty band. Nodes keep their rows and places in time; only the spread changes. */
   function arrange() {
-    var slot = 0;
+    var slot = 0, drawn = {};
+    shown().forEach(function (n) { drawn[n.data("kind")] = true; });
     laneSlots = {};
-    LANES.forEach(function (kind) {
-      if (shown().filter("[kind = '" + kind + "']").nonempty()) { laneSlots[kind] = slot++; }
-    });
+    LANES.forEach(function (kind) { if (drawn[kind]) { laneSlots[kind] = slot++; } });
+    laneHalves = {};
     cy.batch(function () {
       cy.nodes().forEach(function (n) {
-        var lane = laneSlots[n.data("kind")];
-        n.position("y", (lane === undefined ? slot : lane) * laneHeight + n.data("row") * SUB_ROW);
+        var kind = n.data("kind"), lane = laneSlots[kind], row = n.data("row");
+        n.position({ x: columnX(n.data("x0")), y: (lane === undefined ? slot : lane) * laneHeight + row * SUB_ROW });
+        if (row === 0) { // the first row's top, as cytoscape.js bounds it: where the lane's name must end
+          laneHalves[kind] = Math.max(laneHalves[kind] || 0, n.outerHeight() / 2 + 1);
+        }
       });
     });
-    lightEdges(); // the lit edges' labels have moved
+    lightEdges();
+    if (large) { placeLabels(); } // the labels have moved (lightEdges places them only in a small drawing)
   }
 
-  /* Edges of the hubs (robots, humans, models) are faded: each reaches much of the drawing. */
+  /* A lane's band (model units): from just below the previous lane's last row to just below its own. */
+  function laneBand(slot) {
+    var top = slot * laneHeight - NODE_SIZE / 2 - (laneHeight - ROWS_SPAN) + BAND_MARGIN;
+    return { top: top, bottom: top + laneHeight };
+  }
+
+  /* Edges of the hubs (robots, humans, models) are faint: each reaches much of the drawing. */
   function markHubEdges(edges) {
     edges.forEach(function (e) {
       if (STANDING[e.source().data("kind")] || STANDING[e.target().data("kind")]) { e.addClass("hub"); }
     });
   }
 
-  /* The edges of the nodes hovered, focused or selected are lit, with their labels; a label that would cover
-   * one already placed is left out (its edge stays lit), so the labels shown can all be read. */
+  /* The edges of the nodes hovered, focused or selected are lit; then the labels are placed again (in a large
+   * drawing only when the zoom or the places change: a hovered node shows its own label anyway). */
   function lightEdges() {
     var lit = cy.nodes(".hover, .focused, :selected").connectedEdges();
-    cy.edges(".lit").difference(lit).removeClass("lit label-left-out");
-    lit.addClass("lit").removeClass("label-left-out");
-    if (large) { return; } // edges carry no labels there
-    var placed = [];
-    lit.forEach(function (e) {
-      var box = labelBox(e);
-      if (placed.some(function (other) { return overlap(box, other); })) { e.addClass("label-left-out"); }
-      else { placed.push(box); }
+    cy.edges(".lit").difference(lit).removeClass("lit");
+    lit.addClass("lit");
+    if (!large) { placeLabels(); }
+  }
+
+  /* How many kinds of label the zoom lets be read: 0 only those of robots, humans and messages, 1 edges' too
+   * (none in a large drawing), 2 every node's too. */
+  function labelLevel() {
+    var zoom = cy.zoom();
+    return zoom >= NODE_LABEL_ZOOM ? 2 : zoom >= EDGE_LABEL_ZOOM && !large ? 1 : 0;
+  }
+
+  /* Which labels are drawn: those of robots, humans, messages and of nodes hovered, focused, selected or just
+   * published always; then, once the zoom lets them be read, the other nodes' and then the edges' (the lit
+   * ones first, never a faint hub's), each only where it covers no node and no label already placed. The boxes
+   * are in model units, so what fits at one zoom fits at all: zooming in shows more and never a pile. */
+  function placeLabels() {
+    var level = labelLevel(), named = [], labelled = [];
+    labelsAt = level;
+    var nodes = level > 0 ? shown() : cy.collection(), taken = boxGrid();
+    nodes.forEach(function (n) {
+      taken.add(nodeBox(n));
+      if (alwaysLabelled(n)) { taken.add(nodeLabelBox(n)); }
+    });
+    if (level >= 2) {
+      nodes.forEach(function (n) {
+        if (alwaysLabelled(n)) { return; }
+        var box = nodeLabelBox(n);
+        if (!taken.hits(box)) { taken.add(box); named.push(n); }
+      });
+    }
+    if (level >= 1 && !large) {
+      cy.edges(".lit").union(cy.edges().not(".hub")).forEach(function (e) {
+        if (e.source().hasClass("folded") || e.target().hasClass("folded")) { return; }
+        var box = labelBox(e);
+        if (!taken.hits(box)) { taken.add(box); labelled.push(e); }
+      });
+    }
+    cy.batch(function () {
+      cy.elements(".named, .labelled").removeClass("named labelled");
+      cy.collection(named).addClass("named");
+      cy.collection(labelled).addClass("labelled");
     });
   }
 
-  var measure = document.createElement("canvas").getContext("2d");
+  /* Robots, humans and messages, and nodes hovered, focused, selected or just published: labelled at any zoom. */
+  function alwaysLabelled(node) {
+    return LABELLED[node.data("kind")] || node.selected() || node.hasClass("hover") || node.hasClass("focused") ||
+      node.hasClass("fresh");
+  }
+
+  /* Boxes kept in square cells, so that asking whether a box hits one already kept reads only its cells. */
+  function boxGrid() {
+    var CELL = 64, cells = {};
+    function each(box, visit) {
+      for (var i = Math.floor(box.x1 / CELL); i <= Math.floor(box.x2 / CELL); i++) {
+        for (var j = Math.floor(box.y1 / CELL); j <= Math.floor(box.y2 / CELL); j++) {
+          if (visit(i + ":" + j)) { return true; }
+        }
+      }
+      return false;
+    }
+    return {
+      add: function (box) { each(box, function (key) { (cells[key] = cells[key] || []).push(box); }); },
+      hits: function (box) {
+        return each(box, function (key) { return (cells[key] || []).some(function (b) { return overlap(box, b); }); });
+      }
+    };
+  }
+
+  var measure = document.createElement("canvas").getContext("2d"), widths = {};
+
+  function textWidth(element, text) {
+    var font = element.pstyle("font-weight").strValue + " " + element.pstyle("font-size").pfValue + "px " +
+      element.pstyle("font-family").strValue, key = font + "\n" + text;
+    if (widths[key] === undefined) {
+      measure.font = font;
+      widths[key] = measure.measureText(String(text)).width;
+    }
+    return widths[key];
+  }
 
   /* Where an edge's label is drawn (model units): its text's width along the edge, centred on the edge's middle
-   * and turned with it, as the box around that. Measured here, not asked of cytoscape.js, which sizes a label
-   * only once it has been drawn on screen. */
+   * (a parallel edge bends away: cytoscape.js gives that point) and turned with it, as the box around that.
+   * Measured here, not asked of cytoscape.js, which sizes a label only once it has been drawn on screen. */
   function labelBox(edge) {
     var size = edge.pstyle("font-size").pfValue;
-    measure.font = size + "px " + edge.pstyle("font-family").strValue;
-    var half = { w: measure.measureText(String(edge.data("label"))).width / 2 + 3, h: size / 2 + 2 };
-    var from = edge.source().position(), to = edge.target().position();
-    var middle = { x: (from.x + to.x) / 2, y: (from.y + to.y) / 2 }; // parallel edges bend away: conservative
+    var half = { w: textWidth(edge, edge.data("label")) / 2 + 4, h: size / 2 + 3 };
+    var from = edge.source().position(), to = edge.target().position(), middle = edge.midpoint();
     var angle = Math.atan2(to.y - from.y, to.x - from.x);
     var cos = Math.abs(Math.cos(angle)), sin = Math.abs(Math.sin(angle));
     var dx = half.w * cos + half.h * sin, dy = half.w * sin + half.h * cos;
     return { x1: middle.x - dx, x2: middle.x + dx, y1: middle.y - dy, y2: middle.y + dy };
+  }
+
+  /* A node's shape (model units), with a little room around it. */
+  function nodeBox(node) {
+    var at = node.position(), w = node.width() / 2 + 3, h = node.height() / 2 + 3;
+    return { x1: at.x - w, x2: at.x + w, y1: at.y - h, y2: at.y + h };
+  }
+
+  /* Where a node's label is drawn (model units): right of a robot, human or message, else below the node; cut
+   * at its text-max-width. */
+  function nodeLabelBox(node) {
+    var at = node.position(), size = node.pstyle("font-size").pfValue;
+    var width = Math.min(textWidth(node, node.data("label")), node.pstyle("text-max-width").pfValue) + 4;
+    if (node.pstyle("text-halign").strValue === "right") {
+      var left = at.x + node.width() / 2 + node.pstyle("text-margin-x").pfValue;
+      return { x1: left, x2: left + width, y1: at.y - size / 2 - 2, y2: at.y + size / 2 + 2 };
+    }
+    var top = at.y + node.height() / 2 + node.pstyle("text-margin-y").pfValue;
+    return { x1: at.x - width / 2, x2: at.x + width / 2, y1: top, y2: top + size + 4 };
   }
 
   function overlap(a, b) {
@@ -235,16 +347,18 @@
       return { selector: "node[kind = '" + kind + "']", style: { "background-color": KIND_COLOURS[kind] } };
     });
     // Always-labelled kinds write their label to the right of the node, in the room GAP leaves.
-    var labelled = { "min-zoomed-font-size": 7, "text-background-color": "#ffffff", "text-background-opacity": 0.8,
-      "text-background-padding": 1, "text-halign": "right", "text-valign": "center", "text-margin-x": 4,
-      "text-margin-y": 0, "text-max-width": 140 };
+    var labelled = { "label": "data(label)", "min-zoomed-font-size": 7, "text-background-color": "#ffffff",
+      "text-background-opacity": 0.8, "text-background-padding": 1, "text-halign": "right", "text-valign": "center",
+      "text-margin-x": 4, "text-margin-y": 0, "text-max-width": 140 };
     return [
-      // Unlabelled at the starting zoom: a label appears once it is drawn at 14 px (zoom about 1.3).
+      // Unlabelled at the starting zoom: placeLabels() names a node once its label can be read and has room.
       { selector: "node", style: {
         "background-color": KIND_COLOURS.other,
-        "label": "data(label)", "font-size": 11, "min-zoomed-font-size": 14, "color": "#1d2433",
+        "label": "", "font-size": 11, "color": "#1d2433",
         "text-valign": "bottom", "text-margin-y": 3, "width": 18, "height": 18,
-        "text-wrap": "ellipsis", "text-max-width": 130 } }
+        "text-wrap": "ellipsis", "text-max-width": 130, "text-background-color": "#ffffff",
+        "text-background-opacity": 0.8, "text-background-padding": 1 } },
+      { selector: "node.named, node.hover, node.focused, node:selected, node.fresh", style: { "label": "data(label)" } }
     ].concat(byKind, [
       { selector: "node[kind = 'robot']", style: Object.assign({ "shape": "round-rectangle", "width": 30, "height": 22,
         "font-weight": "bold", "font-size": 14 }, labelled) },
@@ -262,16 +376,19 @@
       { selector: "node.focused", style: { "border-width": 4, "border-color": "#12203f", "border-style": "double" } },
       { selector: "node.found", style: { "border-width": 5, "border-color": "#f4511e", "width": 34, "height": 34 } },
       { selector: "edge", style: large ? {
-        "curve-style": "haystack", "width": 1, "line-color": "#c3cad6", "opacity": 0.7 } : {
+        "curve-style": "haystack", "width": 1, "line-color": "#c3cad6", "opacity": 0.7, "z-index": 1 } : {
         "curve-style": "bezier", "width": 1.2, "line-color": "#b8c0cc", "target-arrow-shape": "triangle",
-        "target-arrow-color": "#b8c0cc", "arrow-scale": 0.8, "font-size": 9, "min-zoomed-font-size": 7,
+        "target-arrow-color": "#b8c0cc", "arrow-scale": 0.8, "font-size": 9, "min-zoomed-font-size": 8,
         "color": "#3d4557", "text-rotation": "autorotate", "text-background-color": "#ffffff",
-        "text-background-opacity": 0.85, "text-background-padding": 1 } },
-      { selector: "edge.hub", style: { "opacity": 0.12 } },
-      { selector: "edge.lit", style: { "opacity": 1, "line-color": "#5b6478", "target-arrow-color": "#5b6478",
-        "width": 1.6, "z-index": 10 } },
-      { selector: "edge.lit", style: large ? {} : { "label": "data(label)" } }, // thousands: no edge labels
-      { selector: "edge.lit.label-left-out", style: { "label": "" } },
+        "text-background-opacity": 0.85, "text-background-padding": 1, "z-index": 1 } },
+      // A hub's edges: faint, under the others, no arrow head (in a large drawing, thousands of them would still
+      // make a dark fan: not drawn); lit, they come up with it.
+      { selector: "edge.hub", style: { "opacity": 0.1, "z-index": 0, "target-arrow-shape": "none" } },
+      { selector: "edge.hub", style: large ? { "display": "none" } : {} },
+      { selector: "edge.lit", style: Object.assign({ "opacity": 1, "line-color": "#5b6478",
+        "target-arrow-color": "#5b6478", "width": 1.6, "z-index": 10 },
+        large ? { "display": "element" } : { "target-arrow-shape": "triangle" }) },
+      { selector: "edge.labelled", style: { "label": "data(label)" } }, // placed by placeLabels
       { selector: "edge:selected", style: { "line-color": "#f4511e", "width": 2.5 } }
     ]);
   }
@@ -294,48 +411,110 @@
     placeLanes();
   }
 
-  /* Lane names: an overlay at the left of the drawing, kept beside its lane through pan and zoom. */
+  /* Lanes: an overlay of bands, one per lane, each holding its lane's nodes and its name at the left, kept in
+   * place through pan and zoom. */
   function buildLanes() {
     LANES.forEach(function (kind) {
-      var item = el("li", LANE_NAMES[kind], "graph-lane lane-" + kind);
+      var item = el("li", null, "graph-lane lane-" + kind);
+      item.appendChild(el("span", LANE_NAMES[kind], "graph-lane-name"));
       item.dataset.kind = kind;
       lanesBox.appendChild(item);
       laneItems[kind] = item;
     });
   }
 
-  /* Each lane's name where its nodes are: in the room above its first row when the zoom leaves that room,
-   * else across the middle of its rows (the rows are then thinner than the name). */
+  /* Each lane's band where its nodes are, and its name on it: just above the lane's first row, else as near
+   * as the part of the band in view allows. A name with no room in view is hidden. */
   function placeLanes() {
     var zoom = cy.zoom(), pan = cy.pan(), height = container.clientHeight;
     LANES.forEach(function (kind) {
       var item = laneItems[kind], slot = laneSlots[kind];
       item.hidden = slot === undefined;
       if (item.hidden) { return; }
-      var tall = item.offsetHeight || 14;
-      var first = (slot * laneHeight) * zoom + pan.y;
-      var rows = (SUB_ROWS - 1) * SUB_ROW * zoom, half = NODE_SIZE / 2 * zoom;
-      var room = (laneHeight - (SUB_ROWS - 1) * SUB_ROW - NODE_SIZE) * zoom;
-      var top = room >= tall + 4 ? first - half - tall - 2 : first + rows / 2 - tall / 2;
-      item.hidden = top + tall < 0 || top > height;
-      item.style.transform = "translateY(" + Math.round(top) + "px)";
+      var band = laneBand(slot), top = band.top * zoom + pan.y, tall = (band.bottom - band.top) * zoom;
+      var name = item.firstChild, nameTall = name.offsetHeight || 14;
+      var rows = (slot * laneHeight - laneHalves[kind]) * zoom + pan.y - top; // its first row, from the band's top
+      var low = Math.max(0, -top), high = Math.min(tall, height - top) - nameTall;
+      item.hidden = high < low;
+      item.style.transform = "translateY(" + top + "px)";
+      item.style.height = tall + "px";
+      name.style.transform = "translateY(" + Math.min(high, Math.max(low, rows - nameTall - 2)) + "px)";
     });
   }
 
+  /* The widest and the tallest name of the lanes drawn now (pixels). */
+  function namesSize() {
+    var size = { w: 0, h: 0 };
+    Object.keys(laneSlots).forEach(function (kind) {
+      var item = laneItems[kind], hidden = item.hidden;
+      item.hidden = false;
+      size.w = Math.max(size.w, item.firstChild.offsetWidth);
+      size.h = Math.max(size.h, item.firstChild.offsetHeight);
+      item.hidden = hidden;
+    });
+    return size;
+  }
+
+  /* Where the drawing may begin (pixels from the left): past the lanes' names when, at this zoom, there is no
+   * room for them between the lanes. */
+  function drawingLeft(zoom) {
+    var names = namesSize(), tallest = NODE_SIZE / 2;
+    Object.keys(laneHalves).forEach(function (kind) { tallest = Math.max(tallest, laneHalves[kind]); });
+    var room = (laneHeight - ROWS_SPAN - BAND_MARGIN - (tallest - NODE_SIZE / 2)) * zoom;
+    return room >= names.h + 3 ? FIT_PADDING : Math.max(FIT_PADDING, names.w + 16);
+  }
+
+  /* The nodes and the labels of robots, humans and messages, right of them (model units). */
+  function drawingBox(nodes) {
+    var box = nodesBox(nodes), right = box.x2;
+    nodes.forEach(function (n) {
+      if (LABELLED[n.data("kind")]) { right = Math.max(right, nodeLabelBox(n).x2); }
+    });
+    return { x1: box.x1, x2: right, y1: box.y1, y2: box.y2, w: right - box.x1, h: box.h };
+  }
+
+  /* The zoom that shows the box whole between `left` and the padding (pixels). */
+  function zoomToShow(box, left) {
+    var width = container.clientWidth - left - FIT_PADDING, height = container.clientHeight - 2 * FIT_PADDING;
+    return Math.max(cy.minZoom(), Math.min(cy.maxZoom(), width / Math.max(box.w, 1), height / Math.max(box.h, 1)));
+  }
+
+  /* The whole drawing, as large as the box allows (up to `most`), its labels in view and clear of the lanes'
+   * names. */
+  function showWhole(nodes, most) {
+    var box = drawingBox(nodes);
+    var zoom = Math.min(most, zoomToShow(box, FIT_PADDING)), left = drawingLeft(zoom);
+    zoom = Math.min(zoom, zoomToShow(box, left));
+    var width = container.clientWidth - left - FIT_PADDING;
+    cy.viewport({ zoom: zoom, pan: { x: left + (width - box.w * zoom) / 2 - box.x1 * zoom,
+      y: (container.clientHeight - box.h * zoom) / 2 - box.y1 * zoom } });
+  }
+
   /* Every lane in view, at a zoom where labels can be read if the box is tall enough for that: the whole
-   * drawing when it fits at that zoom, else its beginning (left), all lanes top to bottom. */
+   * drawing when it fits at that zoom, else its beginning (left) as far as every lane's first node, all lanes
+   * top to bottom. */
   function initialView() {
     var drawn = shown();
     if (drawn.empty()) { return; }
-    cy.fit(drawn, 30);
-    viewNote = "";
-    if (cy.zoom() < READABLE_ZOOM) {
-      var box = drawn.boundingBox();
-      var zoom = Math.max(cy.zoom(), Math.min(READABLE_ZOOM, (container.clientHeight - 40) / box.h));
-      cy.zoom(zoom);
-      cy.pan({ x: 30 - box.x1 * zoom, y: (container.clientHeight - box.h * zoom) / 2 - box.y1 * zoom });
-      viewNote = " · showing the start: drag, use the arrow keys or Fit to see the rest";
+    if (laneHeight !== LANE_HEIGHT || columnScale !== 1) {
+      laneHeight = LANE_HEIGHT;
+      columnScale = 1;
+      arrange();
     }
+    viewNote = "";
+    var box = drawingBox(drawn), reach = box.x1;
+    Object.keys(laneSlots).forEach(function (kind) {
+      reach = Math.max(reach, nodesBox(drawn.filter("[kind = '" + kind + "']").min(function (n) {
+        return n.position("x");
+      }).ele).x2);
+    });
+    var start = { x1: box.x1, x2: reach + STEP / 2, y1: box.y1, y2: box.y2, w: reach + STEP / 2 - box.x1, h: box.h };
+    var zoom = Math.min(READABLE_ZOOM, zoomToShow(start, FIT_PADDING)), left = drawingLeft(zoom);
+    zoom = Math.min(zoom, zoomToShow(start, left));
+    if (zoomToShow(box, drawingLeft(zoom)) >= zoom) { showWhole(drawn, FIRST_ZOOM); return; }
+    cy.viewport({ zoom: zoom, pan: { x: drawingLeft(zoom) - box.x1 * zoom,
+      y: (container.clientHeight - box.h * zoom) / 2 - box.y1 * zoom } });
+    viewNote = " · showing the start: drag, use the arrow keys or Fit to see the rest";
   }
 
   function draw(data) {
@@ -358,7 +537,10 @@
     cy.on("mouseover", "node", function (event) { event.target.addClass("hover"); lightEdges(); });
     cy.on("mouseout", "node", function (event) { event.target.removeClass("hover"); lightEdges(); });
     cy.on("select unselect", "node", lightEdges);
-    cy.on("viewport", placeLanes);
+    cy.on("viewport", function () {
+      placeLanes();
+      if (labelsAt !== labelLevel()) { placeLabels(); }
+    });
     initialView();
     cy.one("render", function () {
       var elapsed = Math.round(performance.now() - started);
@@ -384,7 +566,8 @@
     var zoom = cy.zoom(), width = container.clientWidth, height = container.clientHeight;
     return shown().filter(function (n) {
       var at = n.renderedPosition();
-      var drawn = n.pstyle("font-size").pfValue * zoom >= n.pstyle("min-zoomed-font-size").pfValue;
+      var drawn = n.pstyle("label").strValue !== "" &&
+        n.pstyle("font-size").pfValue * zoom >= n.pstyle("min-zoomed-font-size").pfValue;
       return drawn && at.x >= 0 && at.y >= 0 && at.x <= width && at.y <= height;
     }).map(function (n) { return n.data("kind") + ": " + n.data("label"); });
   }
@@ -424,7 +607,7 @@
 
   function merge(data, around) {
     var fresh = data.nodes.filter(function (n) { return cy.getElementById(n.id).empty(); });
-    var anchor = around ? around.position() : null;
+    var anchor = around ? { x: around.data("x0") } : null; // in time's columns before any spread
     var positions = layout(fresh, data.edges.filter(function (e) {
       return fresh.some(function (n) { return n.id === e.source || n.id === e.target; });
     }), anchor);
@@ -503,23 +686,26 @@
   }
 
   /* The whole drawing, filling the box: a drawing wider than the box leaves the box's height empty at the
-   * zoom that fits its width, so the lanes are first moved apart (up to MAX_LANE_STRETCH) to fill it. */
+   * zoom that fits its width, so the lanes are first moved apart (up to MAX_LANE_STRETCH) to fill it; one
+   * taller than the box leaves its width empty, so the time columns are moved apart (up to
+   * MAX_COLUMN_STRETCH). */
   function fitAll() {
     var drawn = shown();
     if (drawn.empty()) { return; }
     laneHeight = LANE_HEIGHT;
+    columnScale = 1;
     arrange();
     var box = nodesBox(drawn), lanes = Object.keys(laneSlots).length;
     var width = container.clientWidth - 2 * FIT_PADDING, height = container.clientHeight - 2 * FIT_PADDING;
+    var timed = box.x2 - Math.max(box.x1, 0); // the part that spreads with the columns
     if (lanes > 1 && box.w / box.h > width / height) {
       var wanted = (box.w * height / width - (box.h - (lanes - 1) * laneHeight)) / (lanes - 1);
       laneHeight = Math.min(LANE_HEIGHT * MAX_LANE_STRETCH, Math.max(LANE_HEIGHT, wanted));
-      arrange();
-      box = nodesBox(drawn);
+    } else if (timed > 0) {
+      columnScale = Math.min(MAX_COLUMN_STRETCH, Math.max(1, (box.h * width / height - (box.w - timed)) / timed));
     }
-    var zoom = Math.max(cy.minZoom(), Math.min(cy.maxZoom(), width / Math.max(box.w, 1), height / Math.max(box.h, 1)));
-    cy.viewport({ zoom: zoom, pan: { x: (container.clientWidth - box.w * zoom) / 2 - box.x1 * zoom,
-      y: (container.clientHeight - box.h * zoom) / 2 - box.y1 * zoom } });
+    arrange();
+    showWhole(drawn, cy.maxZoom());
     placeLanes();
     announce.textContent = "The whole drawing, zoom " + Math.round(cy.zoom() * 100) + " %";
   }
@@ -595,7 +781,7 @@
     var seen = {};
     statements.forEach(function (s) {
       if (!s.is_literal) {
-        var key = s.predicate + "\n" + readable(s.value, s.label);
+        var key = s.predicate + "\n" + named(s.value, s.label);
         seen[key] = (seen[key] || 0) + 1;
       }
     });
@@ -607,7 +793,7 @@
       if (s.is_literal) {
         cell.textContent = String(s.value) + (s.language ? " @" + s.language : "");
       } else {
-        var link = el("a", readable(s.value, s.label));
+        var link = el("a", named(s.value, s.label));
         link.href = "#";
         link.title = String(s.value);
         link.addEventListener("click", function (event) {
@@ -615,7 +801,7 @@
           if (!focusNode(String(s.value), true)) { openPanel(String(s.value), true); }
         });
         cell.appendChild(link);
-        if (seen[s.predicate + "\n" + readable(s.value, s.label)] > 1 && compact(s.value) !== String(s.value)) {
+        if (seen[s.predicate + "\n" + named(s.value, s.label)] > 1 && compact(s.value) !== String(s.value)) {
           cell.appendChild(el("span", " " + compact(s.value), "muted vocabulary"));
         }
       }

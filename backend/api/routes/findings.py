@@ -52,7 +52,9 @@ async def list_rules(services: ServicesDep, principal: Auditor) -> Response:
         "Findings of every rule (or of `rule`, `severity`: both repeatable), filtered by `robot`, `human` (IRIs), "
         "`since`, `until` (ISO 8601 times with a zone, inclusive): a rule that does not declare a filter that is "
         "given has nothing to say under it and is left out. Each finding: `rule`, `severity`, `title`, `focus` "
-        "(what it is about: open it with `/explain?iri=`), `message`, `time`, `robot`, `human`, `values`. "
+        "(what it is about: open it with `/explain?iri=`), `about` (the focus as `GET /graph` draws it: `label`, "
+        "`kind`, `types`, `time`; null while the graph does not hold it), `message`, `time`, `robot`, `human`, "
+        "`values`. "
         "`focus=` (repeatable) lists every finding about those nodes instead, unpaged. "
         "`counts` gives the findings per rule and per severity under the same filters; `next` is the cursor of "
         "the next page (`after=`); `served_from` says, per rule, whether its findings come from its kept rows "
@@ -97,7 +99,8 @@ async def list_findings(
                 media_type=fmt.content_type,
                 headers={"Content-Disposition": 'attachment; filename="findings.csv"'},
             )
-        return FastJSONResponse(_json(page, limit))
+        nodes = services.graph.nodes({str(found["focus"]) for found in page.findings})
+        return FastJSONResponse(_json(page, limit, nodes))
 
     return await run_in_threadpool(work)
 
@@ -160,9 +163,9 @@ def _limit(raw: str | None) -> int:
     return value
 
 
-def _json(page: FindingsPage, limit: int) -> dict[str, object]:
+def _json(page: FindingsPage, limit: int, nodes: dict[str, dict[str, object]]) -> dict[str, object]:
     return {
-        "findings": page.findings,
+        "findings": [{**found, "about": nodes.get(str(found["focus"]))} for found in page.findings],
         "counts": page.counts,
         "limit": limit,
         "has_more": page.has_more,

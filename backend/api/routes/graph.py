@@ -85,7 +85,8 @@ async def resource(iri: Iri, services: ServicesDep, principal: Auditor) -> dict[
         "Walks `segb:triggeredByActivity`, `segb:triggeredByEntity`, `prov:wasGeneratedBy`, "
         "`segb:producedEntityResult`, `prov:wasDerivedFrom` backwards and forwards from the resource, and tells "
         "each activity as a step in time order with what was heard and said, the models used, the emotions "
-        "read and the shared events and humans it was about. `role` is cause, seed or effect. 404 when "
+        "read and the shared events and humans it was about (a shared event's seeds are the activities about "
+        "it). `role` is cause, seed, effect or related. 404 when "
         "nothing is known about the IRI. Read from the graph index, like `/graph`: a post's steps appear once "
         "the views include it (`reports_lag` in `/healthz/ready`)."
     ),

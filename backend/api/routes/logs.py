@@ -50,6 +50,11 @@ class Filters(BaseModel):
 class LogEntries(BaseModel):
     log_file: str | None = Field(description="Absolute path of the current log file; null when kept in memory.")
     count: int = Field(description="Number of entries returned.")
+    total: int = Field(
+        description=f"Entries that match the filters, counted up to {MAX_ENTRIES:,} or to this page's end, "
+        "whichever is further (a page says `1\u201350 of 153`)."
+    )
+    more: bool = Field(description="True when more entries match than `total` counts.")
     filters: Filters = Field(description="The filters applied, normalised.")
     entries: list[LogEntry]
     source: str = Field(description="`file` (DATA_DIR/logs/server.jsonl and its backups) or `memory`.")
@@ -63,8 +68,9 @@ class LogEntries(BaseModel):
         "The server's structured log, newest first: one entry per request (id, method, path, status, duration, "
         "user, client address, triples written) and every warning or error of the server. `level` keeps that "
         "level and above (blank: every level); `contains` keeps entries holding that text in any field (any "
-        "case); `offset` skips that many of the matching entries (the next page starts at `offset + limit`). "
-        "Reads the rotated backups too when `offset + limit` needs them. Tokens and bodies are never logged. "
+        "case); `offset` skips that many of the matching entries (the next page starts at `offset + limit`); "
+        f"`total` counts the matching entries up to {MAX_ENTRIES:,} (`more` when there are more). "
+        "Reads the rotated backups too when the count or the page needs them. Tokens and bodies are never logged. "
         "The reference backend's fields are there too: `log_file`, `count`, `filters`, and per entry "
         "`timestamp`, `actor`, `origin_ip` and `raw`."
     ),
@@ -87,10 +93,14 @@ def server_log(
         raise NotFound("This server keeps no log.")
     lowest = level.upper() if level else None
     needle = contains.strip() if contains and contains.strip() else None
-    entries = log.read(offset + limit, lowest or LEVELS[0], needle)[offset:]
+    counted = max(offset + limit, MAX_ENTRIES)
+    found = log.read(counted + 1, lowest or LEVELS[0], needle)
+    entries = found[offset : offset + limit]
     return {
         "log_file": log.file,
         "count": len(entries),
+        "total": min(len(found), counted),
+        "more": len(found) > counted,
         "filters": {"limit": limit, "level": lowest, "contains": needle},  # the reference's three
         "entries": entries,
         "source": log.source,

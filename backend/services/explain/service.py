@@ -1,6 +1,7 @@
-"""Why did the robot do that? The causal chain around one message, activity, emotion or state.
+"""Why did the robot do that? The causal chain around one message, activity, emotion, state or shared event.
 
-From the seed, the walk goes upstream along the provenance links that say where an activity came from
+From the seed (the activity it stands for: itself, the one that produced it, or for a shared event the activities
+about it), the walk goes upstream along the provenance links that say where an activity came from
 (`segb:triggeredByActivity`, `segb:triggeredByEntity`, the activity that generated a triggering message,
 `prov:wasDerivedFrom`: the rule of reading `CAUSE_LINKS`) for its causes, and downstream along the same links for its
 effects; what the walk then meets beside them (another cause of an effect, an activity about the same shared event)
@@ -133,7 +134,7 @@ class ExplainService:
         steps.sort(key=lambda step: (step.time or "~", step.activity))
         return {
             "iri": iri,
-            "seed": {"iri": seed.iri, "label": self._seed_label(reader, seed), "kind": seed.kind},
+            "seed": {"iri": seed.iri, "label": self._seed_label(reader, seed), "kind": seed.kind, "time": _time(seed)},
             "steps": [step.__dict__ for step in steps],
             "truncated": len(roles) >= MAX_ACTIVITIES,
         }
@@ -195,14 +196,23 @@ class _Reader:
                 self.linked[value] = None
 
     def activities_of(self, node: Resource) -> list[str]:
-        """The activity a seed stands for: itself, or the activity that produced it."""
+        """The activity a seed stands for: itself, the activity that produced it, or for a shared event the
+        activities about it (each robot's that sensed it)."""
         if node.kind == "activity":
             return [node.iri]
+        if node.kind == "shared-event":
+            return self.about(node.iri) or [node.iri]
         producers = node.out(WAS_GENERATED_BY) + node.into(PRODUCED) + node.into(GENERATED)
         if not producers:
             for annotation in node.into(HAS_EMOTION):  # an onyx:Emotion: through its annotation
                 producers += self.get(annotation).into(PRODUCED) + self.get(annotation).into(GENERATED)
         return list(dict.fromkeys(producers)) or [node.iri]
+
+    def about(self, event: str) -> list[str]:
+        """The activities about a shared event. `schema:about` is read backwards here only, not on every node: a
+        human is the object of one from each shared event about them."""
+        body = self.graph.summaries([event], self.pending, incoming={ABOUT})[event]
+        return [iri for iri in Resource(body).into(ABOUT) if self.get(iri).kind == "activity"]
 
     def produced(self, activity: str) -> list[str]:
         node = self.get(activity)

@@ -68,6 +68,11 @@ class GraphService:
         through = self.index.changed_through  # read first: a change made meanwhile is announced again, not lost
         return {**self.index.view(request), "through": through}
 
+    def nodes(self, iris: Collection[str]) -> dict[str, dict[str, object]]:
+        """These IRIs' nodes as `graph` draws them, by IRI: how a list names what it is about without drawing
+        anything. An IRI the index holds no node of (not yet, or never) is left out; none while it is first built."""
+        return self.index.nodes(iris) if self.index.ready else {}
+
     def resource(
         self, iri: str, *, incoming: Collection[str] | None = None, incoming_limit: int = INCOMING_LIMIT
     ) -> dict[str, object]:

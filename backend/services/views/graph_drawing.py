@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import json
 import sqlite3
+from collections.abc import Collection
 from functools import lru_cache
 
-from segb_server.backend.services.graph.candidates import CandidateQuery, GraphRequest
+from segb_server.backend.services.graph.candidates import NODE_COLUMNS, NODE_FROM, CandidateQuery, GraphRequest
 from segb_server.backend.services.graph.facts import PROV, TERMS, local_name, node_time
 from segb_server.backend.services.views import terms
 from segb_server.backend.vocabulary import KINDS, compact
@@ -33,6 +34,16 @@ def draw(connection: sqlite3.Connection, request: GraphRequest) -> dict[str, obj
         "total_nodes": total,
         "matches": [str(node["id"]) for node in nodes if needle and _matches(node, needle)],
     }
+
+
+def nodes_of(connection: sqlite3.Connection, iris: Collection[str]) -> dict[str, dict[str, object]]:
+    """The nodes of these IRIs as a view draws them, by IRI (an IRI the index holds no node of is left out)."""
+    ids = terms.lookup(connection, TERMS, iris)
+    found = connection.execute(
+        f"SELECT {NODE_COLUMNS} FROM {NODE_FROM} WHERE n.id IN (SELECT value FROM json_each(?))",
+        (json.dumps(sorted(ids.values())),),
+    )
+    return {row[4]: _node(row[0], row[1], *row[4:]) for row in found}
 
 
 def _is_node(connection: sqlite3.Connection, node: int) -> bool:

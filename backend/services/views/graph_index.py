@@ -36,7 +36,7 @@ from segb_server.backend.services.graph.neighbourhoods import MAX_KEPT_REACH, Ke
 from segb_server.backend.services.views import terms
 from segb_server.backend.services.views.database import ViewDatabase
 from segb_server.backend.services.views.delta import Delta
-from segb_server.backend.services.views.graph_drawing import draw
+from segb_server.backend.services.views.graph_drawing import draw, nodes_of
 from segb_server.backend.services.views.graph_first_view import (
     first_view_changed,
     first_view_cutoff,
@@ -215,6 +215,11 @@ class GraphIndex:
     def _view(self, connection: sqlite3.Connection, request: GraphRequest) -> dict[str, object]:
         """A view drawn from the tables now: every drawing goes through here."""
         return draw(connection, request)
+
+    def nodes(self, iris: Collection[str]) -> dict[str, dict[str, object]]:
+        """The nodes of these IRIs as a view draws them (label, kind, time), by IRI; those it holds no node of
+        are left out."""
+        return nodes_of(self.db.reader(), iris)
 
     def statements(
         self, iris: Sequence[str], incoming: Collection[str], incoming_limit: int, pending: Sequence[Quad] = ()

@@ -10,10 +10,12 @@
   var ROW_HEIGHT = 34; // px; .tl-row's height in timeline.css
   var OVERSCAN = 6; // rows drawn beyond each edge of the visible ones
   var FRESH_MS = 4000; // how long a row that just arrived stays marked
-  var BREAK_PX = 76; // a stretch without events cut out of the ruler: room for its length ("36 days")
+  var BREAK_PX = [56, 76]; // a stretch without events cut out of the ruler: room for its length ("36 days")
+  var BREAK_SHARE = 0.15; // of the ruler's width, between those bounds
+  var EDGE_PX = 16; // a stretch between the window's edge and its first or last event, cut out: a hatched edge
   var PART_MIN_PX = 12; // a part of the ruler that is one instant still shows its events
-  var BREAK_SHARE = 0.5; // a stretch is cut out when it would take at least this share of the ruler
-  var MOST_BREAKS = 3;
+  var BREAK_RATIO = 20; // stretches cut out together are each this many times as long as any stretch kept
+  var MOST_BREAKS = 4; // a lone event before and after the others, and the window's two edges
   var NUMBER = typeof Intl !== "undefined" ? new Intl.NumberFormat("en") : null;
 
   function count(n) { return NUMBER ? NUMBER.format(n) : String(n); }
@@ -494,56 +496,76 @@
 
   // The ruler's scale: the window's time laid across its width, except that a long stretch without events (a
   // training run weeks before a conversation) is cut out and drawn as a narrow break labelled with its length, so
-  // the events spread over the ruler instead of sitting in a sliver of it. Each part between breaks is linear.
-  // Worked out again when the rows or the ruler's width change (refilter forgets it).
+  // the events spread over the ruler instead of sitting in a sliver of it. A stretch cut out between the window's
+  // edge and its first or last event leaves a narrower hatched edge and no part of its own: the ruler spans where
+  // the events are. Each part between breaks is linear. Worked out again when the rows or the ruler's width
+  // change (refilter forgets it).
   Timeline.prototype.scale = function () {
     var width = this.ruler.clientWidth;
     if (this.scaled && this.scaled.width === width) return this.scaled;
     var first = this.firstTime(), last = this.lastTime();
     var cuts = this.quietStretches(first, last);
+    if (!cuts.length) {
+      this.scaled = { width: width, parts: [{ from: first, to: last, left: 0, right: width }] };
+      return this.scaled;
+    }
+    var breakPx = Math.round(Math.min(BREAK_PX[1], Math.max(BREAK_PX[0], BREAK_SHARE * width)));
     var parts = [];
     var from = first;
-    cuts.forEach(function (cut) { parts.push({ from: from, to: cut.from }); from = cut.to; });
-    parts.push({ from: from, to: Math.max(from, last) });
-    var spread = Math.max(0, width - cuts.length * BREAK_PX - parts.length * PART_MIN_PX);
-    var drawn = parts.reduce(function (sum, part) { return sum + (part.to - part.from); }, 0);
-    var left = 0;
-    parts.forEach(function (part) {
-      part.left = left;
-      part.right = left + PART_MIN_PX + spread * (drawn > 0 ? (part.to - part.from) / drawn : 1 / parts.length);
-      left = part.right + BREAK_PX;
+    cuts.forEach(function (cut) {
+      cut.width = cut.lead || cut.trail ? EDGE_PX : breakPx;
+      parts.push({ from: from, to: cut.from, edge: !!cut.lead });
+      from = cut.to;
     });
-    if (!cuts.length) parts = [{ from: first, to: last, left: 0, right: width }];
+    parts.push({ from: from, to: Math.max(from, last), edge: !!cuts[cuts.length - 1].trail });
+    var inner = parts.filter(function (part) { return !part.edge; });
+    var breaks = cuts.reduce(function (sum, cut) { return sum + cut.width; }, 0);
+    var spread = Math.max(0, width - breaks - inner.length * PART_MIN_PX);
+    var drawn = inner.reduce(function (sum, part) { return sum + (part.to - part.from); }, 0);
+    var left = 0;
+    parts.forEach(function (part, n) {
+      part.left = left;
+      var share = drawn > 0 ? (part.to - part.from) / drawn : 1 / inner.length;
+      part.right = part.edge ? left : left + PART_MIN_PX + spread * share;
+      left = part.right + (n < cuts.length ? cuts[n].width : 0);
+    });
     this.scaled = { width: width, parts: parts };
     return this.scaled;
   };
 
-  // The stretches without events to cut out of the ruler, in time order: the longest first, each while it would
-  // take at least half of what is left of the ruler and leaves events that last some time to spread over it (two
-  // events an hour apart keep their hour: it is the whole story).
+  // The stretches without events to cut out of the ruler, in time order: of the longest few (between events, and
+  // between the window's edges and its first and last events), longest first, each while it is at least as long
+  // as the time left on the ruler once it is out (two events an hour apart keep their hour: it is the whole
+  // story; a minute's pause in a conversation of ten keeps its place). Several stretches of about one
+  // length, that one at a time would not be cut, go together when each is at least as long as what is left and
+  // many times as long as any stretch left in: a window of months around a training run and a conversation.
   Timeline.prototype.quietStretches = function (first, last) {
-    var longest = []; // the MOST_BREAKS longest gaps between events (and the window's edges), longest first
+    var longest = []; // the MOST_BREAKS + 1 longest stretches, longest first
     var previous = first;
-    function gap(to) {
-      var kept = longest[MOST_BREAKS - 1];
+    var lead = true;
+    function gap(to, trail) {
+      var kept = longest[MOST_BREAKS];
       if (to - previous > (kept ? kept.to - kept.from : 0)) { // rare: most gaps between events are short
-        longest.push({ from: previous, to: to });
+        longest.push({ from: previous, to: to, lead: lead, trail: trail });
         longest.sort(function (a, b) { return (b.to - b.from) - (a.to - a.from); });
-        if (longest.length > MOST_BREAKS) longest.pop();
+        if (longest.length > MOST_BREAKS + 1) longest.pop();
       }
       previous = Math.max(previous, to);
+      lead = false;
     }
-    for (var i = 0; i < this.rows.length; i++) if (this.rows[i]._t !== Infinity) gap(this.rows[i]._t);
-    gap(last);
-    var left = last - first;
-    var cuts = [];
-    for (var g = 0; g < longest.length; g++) {
-      var length = longest[g].to - longest[g].from;
-      if (length < BREAK_SHARE * left || left - length <= 0) break;
-      cuts.push(longest[g]);
-      left -= length;
+    for (var i = 0; i < this.rows.length; i++) if (this.rows[i]._t !== Infinity) gap(this.rows[i]._t, false);
+    gap(last, true);
+    var cut = 0, out = 0, oneByOne = true;
+    for (var k = 1; k <= Math.min(MOST_BREAKS, longest.length); k++) {
+      var shortest = longest[k - 1].to - longest[k - 1].from;
+      out += shortest;
+      var left = last - first - out;
+      var keptLongest = longest[k] ? longest[k].to - longest[k].from : 0;
+      var longer = left > 0 && shortest >= left;
+      oneByOne = oneByOne && longer;
+      if (oneByOne || (longer && shortest >= BREAK_RATIO * keptLongest)) cut = k;
     }
-    return cuts.sort(function (a, b) { return a.from - b.from; });
+    return longest.slice(0, cut).sort(function (a, b) { return a.from - b.from; });
   };
 
   Timeline.prototype.x = function (t) {
@@ -631,45 +653,60 @@
     return true;
   };
 
-  // Ticks in each part of the ruler; a label that would meet the one before it is left out (a part that is one
-  // instant has room for none of its own beside the next part's).
+  // Ticks in each part of the ruler (none on a hatched edge). The first time of each part and the ruler's last
+  // are placed first, so a lone event drawn apart keeps its date; ticks between them fill the room left. A label
+  // that would meet another is left out, and one that would run past the ruler's end ends there instead.
   Timeline.prototype.drawTicks = function (width) {
     this.ticks.textContent = "";
     if (!this.rows.length && isNaN(this.start)) return;
     var from = this.firstTime(), to = this.lastTime();
     var withDate = to - from > 86400000 || new Date(from).getUTCDate() !== new Date(to).getUTCDate();
-    var parts = this.scale().parts;
+    var parts = this.scale().parts.filter(function (part) { return !part.edge; });
     var marks = [];
     parts.forEach(function (part, n) {
       var count = part.to > part.from ? Math.max(1, Math.floor((part.right - part.left) / (withDate ? 300 : 180))) : 0;
-      if (!count) marks.push({ t: part.from, x: (part.left + part.right) / 2 });
+      if (!count) marks.push({ t: part.from, x: (part.left + part.right) / 2, key: true });
       for (var i = 0; i < count; i++) {
         var share = i / count;
-        marks.push({ t: part.from + (part.to - part.from) * share, x: part.left + (part.right - part.left) * share });
+        marks.push({
+          t: part.from + (part.to - part.from) * share, x: part.left + (part.right - part.left) * share, key: i === 0,
+        });
       }
-      if (n === parts.length - 1 && count) marks.push({ t: part.to, x: width, last: true });
+      if (n === parts.length - 1 && count) marks.push({ t: part.to, x: part.right, key: true });
     });
-    var reached = -Infinity;
-    for (var m = 0; m < marks.length; m++) {
-      var tick = this.ticks.appendChild(element("span", "tl-tick", clock(marks[m].t, withDate).replace(/\.\d+$/, "")));
-      tick.style.left = marks[m].x + "px";
-      if (marks[m].last) tick.classList.add("tl-tick-last");
-      var start = marks[m].last ? marks[m].x - tick.offsetWidth : marks[m].x;
-      if (start < reached + 8) { this.ticks.removeChild(tick); continue; }
-      reached = start + tick.offsetWidth;
+    var ordered = marks.filter(function (mark) { return mark.key; })
+      .concat(marks.filter(function (mark) { return !mark.key; }));
+    var kept = [];
+    for (var m = 0; m < ordered.length; m++) {
+      var mark = ordered[m];
+      var tick = this.ticks.appendChild(element("span", "tl-tick", clock(mark.t, withDate).replace(/\.\d+$/, "")));
+      tick.style.left = mark.x + "px";
+      var start = mark.x, size = tick.offsetWidth;
+      if (start + size > width) {
+        tick.classList.add("tl-tick-last");
+        start -= size;
+      }
+      var meets = kept.some(function (other) { return start < other.end + 8 && start + size + 8 > other.start; });
+      if (meets) { this.ticks.removeChild(tick); continue; }
+      kept.push({ start: start, end: start + size, tick: tick });
     }
+    var ticks = this.ticks;
+    kept.sort(function (a, b) { return a.start - b.start; }).forEach(function (one) { ticks.appendChild(one.tick); });
   };
 
-  // Where the ruler leaves out a stretch without events: a hatched gap that says how long the stretch is.
+  // Where the ruler leaves out a stretch without events: a hatched gap that says how long the stretch is; at the
+  // window's edge, a narrower one that says it in its title.
   Timeline.prototype.drawBreaks = function () {
     this.breaks.textContent = "";
     var parts = this.scale().parts;
     for (var i = 1; i < parts.length; i++) {
-      var gap = this.breaks.appendChild(element("div", "tl-break"));
+      var length = lasting(parts[i].from - parts[i - 1].to);
+      var edge = parts[i - 1].edge ? " before the first event" : parts[i].edge ? " after the last event" : "";
+      var gap = this.breaks.appendChild(element("div", edge ? "tl-break tl-break-edge" : "tl-break"));
       gap.style.left = parts[i - 1].right + "px";
       gap.style.width = parts[i].left - parts[i - 1].right + "px";
-      gap.title = lasting(parts[i].from - parts[i - 1].to) + " without events, left out of the ruler";
-      gap.appendChild(element("span", "tl-break-label", lasting(parts[i].from - parts[i - 1].to)));
+      gap.title = length + " without events" + edge + ", left out of the ruler";
+      if (!edge) gap.appendChild(element("span", "tl-break-label", length));
     }
     this.root.setAttribute("data-ruler-breaks", String(parts.length - 1));
   };
